@@ -1,1 +1,31 @@
-//! placeholder
+//! # reference
+//!
+//! Ground truth for the solvers: analytic solutions of transport and diffusion theory.
+//!
+//! * [`point_source`]: a unit-power isotropic point source in an infinite homogeneous,
+//!   isotropically scattering medium: Grosjean's approximation (FLD Eq 24), the CDA Green's
+//!   function (FLD Eq 27), FLD's transport limit (FLD Eq 29), and the Knudsen number of the
+//!   Grosjean solution (FLD Fig 3c), in physical units and in the normalised form of FLD Eq 25.
+//!
+//! Everything is `f64`.
+#![deny(missing_docs)]
+
+pub mod point_source;
+pub mod quadrature;
+
+use thiserror::Error;
+
+/// Errors of the reference computations.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ReferenceError {
+    /// A parameter is outside its domain.
+    #[error("parameter `{name}` = {value} is invalid: {reason}")]
+    BadParameter {
+        /// Parameter name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is allowed.
+        reason: &'static str,
+    },
+}
