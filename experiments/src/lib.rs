@@ -1,1 +1,14 @@
-//! placeholder
+//! # experiments
+//!
+//! One module and one binary per paper figure. Each experiment builds its scenes, calls the
+//! solvers, and writes `results/<name>/` (or `--out DIR`): CSV tables, PNG plots, and a
+//! `meta.json` with the command line, git revision, machine and timings. `--quick` shrinks
+//! every experiment to a CI-sized run. The `figures` binary runs them all and writes
+//! `results/README.md`.
+#![deny(missing_docs)]
+
+pub mod common;
+pub mod convergence;
+pub mod plot;
+pub mod point_source;
+pub mod point_source_analytic;
