@@ -1,1 +1,173 @@
-//! Benchmark support.
+//! Benchmark support for the solver benchmarks.
+//!
+//! * [`bandwidth`]: a STREAM-like memory-bandwidth probe (triad and copy over `f32` buffers,
+//!   parallel with rayon), run in the same process as a benchmark so the solver's achieved
+//!   effective bandwidth can be put in relation to what the memory system delivers for a
+//!   simple streaming kernel on the same machine, at the same moment.
+//! * [`median_seconds`]: the median wall-clock time of a closure over a few runs.
+#![deny(missing_docs)]
+
+use std::hint::black_box;
+use std::time::Instant;
+
+pub mod bandwidth {
+    //! STREAM-like bandwidth probes.
+    //!
+    //! Both kernels run over `f32` buffers split into chunks of [`CHUNK`] elements that rayon
+    //! distributes over its thread pool (`par_chunks_mut`). The buffers are allocated and
+    //! first touched in parallel with the same chunking before any timing, so page faults are
+    //! not measured. Each call runs the kernel `reps` times (at least once) and returns the
+    //! best, i.e. the highest, bandwidth, as STREAM does.
+    //!
+    //! **Byte counting** follows STREAM: only the bytes the kernel's source code reads and
+    //! writes are counted, i.e. triad `a[i] = b[i] + s·c[i]` counts 3 arrays × 4 bytes per
+    //! element (2 reads + 1 write) and copy `a[i] = b[i]` counts 2 arrays × 4 bytes. The
+    //! write-allocate traffic (the cache line of `a` that a normal store reads from memory
+    //! before overwriting it) is **not** counted, so on a write-allocate cache the hardware
+    //! moves about 4/3 (triad) and 3/2 (copy) of the reported bytes. GB are 10⁹ bytes.
+    //!
+    //! The solver's "effective bytes" (`CpuFld::bytes_per_iteration`) are counted the same way
+    //! (each value once per read or write), so the ratio of the two is like for like.
+
+    use rayon::prelude::*;
+    use std::hint::black_box;
+    use std::time::Instant;
+
+    /// Elements per rayon work item (64 Ki `f32` = 256 KiB per array).
+    pub const CHUNK: usize = 64 * 1024;
+
+    /// Bytes per `f32` element.
+    const F32_BYTES: usize = std::mem::size_of::<f32>();
+
+    /// A buffer of `len` copies of `value`, first touched in parallel with the kernels' chunking.
+    fn filled(len: usize, value: f32) -> Vec<f32> {
+        let mut v = vec![0.0f32; len];
+        v.par_chunks_mut(CHUNK).for_each(|c| c.fill(value));
+        v
+    }
+
+    /// Runs `kernel` `reps` times (at least once) and returns the best bandwidth in GB/s for
+    /// a kernel that moves `bytes` bytes per run.
+    fn best_gbs(bytes: usize, reps: usize, mut kernel: impl FnMut()) -> f64 {
+        let mut best = 0.0f64;
+        for _ in 0..reps.max(1) {
+            let t0 = Instant::now();
+            kernel();
+            let seconds = t0.elapsed().as_secs_f64();
+            if seconds > 0.0 {
+                best = best.max(bytes as f64 / seconds / 1e9);
+            }
+        }
+        best
+    }
+
+    /// STREAM triad `a[i] = b[i] + s·c[i]` over three `f32` arrays of `len_f32` elements each
+    /// (at least 1). Returns the best GB/s over `reps` runs (at least 1), counting
+    /// 3 × 4 bytes per element (no write-allocate traffic, see the module docs).
+    pub fn triad_gbs(len_f32: usize, reps: usize) -> f64 {
+        let len = len_f32.max(1);
+        let mut a = filled(len, 0.0);
+        let b = filled(len, 1.0);
+        let c = filled(len, 2.0);
+        let s = black_box(3.0f32);
+        let gbs = best_gbs(3 * F32_BYTES * len, reps, || {
+            let (b, c) = (black_box(b.as_slice()), black_box(c.as_slice()));
+            a.par_chunks_mut(CHUNK)
+                .zip(b.par_chunks(CHUNK))
+                .zip(c.par_chunks(CHUNK))
+                .for_each(|((a, b), c)| {
+                    for ((x, &y), &z) in a.iter_mut().zip(b).zip(c) {
+                        *x = y + s * z;
+                    }
+                });
+            black_box(a.as_mut_slice());
+        });
+        black_box(&a);
+        gbs
+    }
+
+    /// STREAM copy `a[i] = b[i]` over two `f32` arrays of `len_f32` elements each
+    /// (at least 1). Returns the best GB/s over `reps` runs (at least 1), counting
+    /// 2 × 4 bytes per element (no write-allocate traffic, see the module docs).
+    pub fn copy_gbs(len_f32: usize, reps: usize) -> f64 {
+        let len = len_f32.max(1);
+        let mut a = filled(len, 0.0);
+        let b = filled(len, 1.0);
+        let gbs = best_gbs(2 * F32_BYTES * len, reps, || {
+            let b = black_box(b.as_slice());
+            a.par_chunks_mut(CHUNK)
+                .zip(b.par_chunks(CHUNK))
+                .for_each(|(a, b)| a.copy_from_slice(b));
+            black_box(a.as_mut_slice());
+        });
+        black_box(&a);
+        gbs
+    }
+
+    /// Elements per array such that `arrays` `f32` arrays together hold about `total_bytes`
+    /// bytes (at least 1 element), e.g. to run [`triad_gbs`] (3 arrays) or [`copy_gbs`]
+    /// (2 arrays) over the same footprint as a solver's state.
+    pub fn len_for_total_bytes(total_bytes: usize, arrays: usize) -> usize {
+        (total_bytes / (arrays.max(1) * F32_BYTES)).max(1)
+    }
+}
+
+/// Median wall-clock seconds of `k` runs (at least 1) of `f`; the result of each run goes
+/// through [`black_box`] so it is not optimised away. With an even count the median is the
+/// mean of the two middle runs.
+pub fn median_seconds<R>(k: usize, mut f: impl FnMut() -> R) -> f64 {
+    let mut times: Vec<f64> = (0..k.max(1))
+        .map(|_| {
+            let t0 = Instant::now();
+            black_box(f());
+            t0.elapsed().as_secs_f64()
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let mid = times.len() / 2;
+    if times.len() % 2 == 1 {
+        times[mid]
+    } else {
+        0.5 * (times[mid - 1] + times[mid])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::bandwidth::{copy_gbs, len_for_total_bytes, triad_gbs};
+    use super::median_seconds;
+
+    #[test]
+    fn probes_return_positive_finite_bandwidth() {
+        for gbs in [
+            triad_gbs(1 << 18, 2),
+            copy_gbs(1 << 18, 2),
+            triad_gbs(0, 0),
+            copy_gbs(3, 1),
+        ] {
+            assert!(gbs.is_finite() && gbs >= 0.0, "{gbs}");
+        }
+        assert!(triad_gbs(1 << 20, 3) > 0.0);
+    }
+
+    #[test]
+    fn len_for_total_bytes_splits_the_footprint() {
+        assert_eq!(len_for_total_bytes(1200, 3), 100);
+        assert_eq!(len_for_total_bytes(800, 2), 100);
+        assert_eq!(len_for_total_bytes(0, 3), 1);
+        assert_eq!(len_for_total_bytes(8, 0), 2);
+    }
+
+    #[test]
+    fn median_of_odd_and_even_counts() {
+        let mut calls = 0;
+        let m = median_seconds(5, || calls += 1);
+        assert_eq!(calls, 5);
+        assert!(m >= 0.0);
+        let mut calls = 0;
+        median_seconds(0, || calls += 1);
+        assert_eq!(calls, 1);
+        let sleep = |ms| move || std::thread::sleep(std::time::Duration::from_millis(ms));
+        assert!(median_seconds(2, sleep(2)) >= 0.002);
+    }
+}

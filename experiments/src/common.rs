@@ -22,7 +22,10 @@ pub struct CommonArgs {
 
 /// The workspace root (parent of this crate's manifest directory).
 pub fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."))
 }
 
 /// An experiment's output directory, created on construction, plus its provenance record.
@@ -39,10 +42,20 @@ pub struct Output {
 impl Output {
     /// Creates `args.out` or `results/<name>`.
     pub fn new(name: &str, args: &CommonArgs, params: impl Serialize) -> Result<Self> {
-        let dir = args.out.clone().unwrap_or_else(|| workspace_root().join("results").join(name));
-        std::fs::create_dir_all(&dir).with_context(|| format!("creating output directory {}", dir.display()))?;
+        let dir = args
+            .out
+            .clone()
+            .unwrap_or_else(|| workspace_root().join("results").join(name));
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("creating output directory {}", dir.display()))?;
         let params = serde_json::to_value(params).context("serialising parameters")?;
-        Ok(Self { dir, name: name.to_string(), started: Instant::now(), timings: Vec::new(), params })
+        Ok(Self {
+            dir,
+            name: name.to_string(),
+            started: Instant::now(),
+            timings: Vec::new(),
+            params,
+        })
     }
 
     /// Path of a file in the output directory.
@@ -58,11 +71,14 @@ impl Output {
     /// Writes rows as CSV (header from the struct's field names).
     pub fn csv<T: Serialize>(&self, file: &str, rows: &[T]) -> Result<()> {
         let path = self.path(file);
-        let mut w = csv::Writer::from_path(&path).with_context(|| format!("creating {}", path.display()))?;
+        let mut w = csv::Writer::from_path(&path)
+            .with_context(|| format!("creating {}", path.display()))?;
         for r in rows {
-            w.serialize(r).with_context(|| format!("writing {}", path.display()))?;
+            w.serialize(r)
+                .with_context(|| format!("writing {}", path.display()))?;
         }
-        w.flush().with_context(|| format!("writing {}", path.display()))?;
+        w.flush()
+            .with_context(|| format!("writing {}", path.display()))?;
         Ok(())
     }
 
@@ -80,7 +96,8 @@ impl Output {
             "crate_version": env!("CARGO_PKG_VERSION"),
         });
         let path = self.path("meta.json");
-        std::fs::write(&path, serde_json::to_string_pretty(&meta)?).with_context(|| format!("writing {}", path.display()))?;
+        std::fs::write(&path, serde_json::to_string_pretty(&meta)?)
+            .with_context(|| format!("writing {}", path.display()))?;
         Ok(())
     }
 }
@@ -101,9 +118,16 @@ pub fn git_revision() -> String {
 pub fn machine() -> serde_json::Value {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).map(|s| s.trim().to_string()))
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|s| s.trim().to_string())
+        })
         .unwrap_or_else(|| "unknown".to_string());
-    let host = std::fs::read_to_string("/etc/hostname").map(|s| s.trim().to_string()).unwrap_or_else(|_| "unknown".to_string());
+    let host = std::fs::read_to_string("/etc/hostname")
+        .map(|s| s.trim().to_string())
+        .unwrap_or_else(|_| "unknown".to_string());
     serde_json::json!({
         "hostname": host,
         "cpu": cpu,
@@ -120,7 +144,9 @@ pub fn progress(len: u64, args: &CommonArgs, what: &str) -> ProgressBar {
         return ProgressBar::hidden();
     }
     let pb = ProgressBar::new(len);
-    if let Ok(style) = ProgressStyle::with_template("{prefix:>18} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}") {
+    if let Ok(style) =
+        ProgressStyle::with_template("{prefix:>18} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}")
+    {
         pb.set_style(style);
     }
     pb.set_prefix(what.to_string());
@@ -134,6 +160,10 @@ where
 {
     s.split(',')
         .filter(|t| !t.trim().is_empty())
-        .map(|t| t.trim().parse::<T>().map_err(|e| anyhow::anyhow!("--{flag}: cannot parse `{t}`: {e}")))
+        .map(|t| {
+            t.trim()
+                .parse::<T>()
+                .map_err(|e| anyhow::anyhow!("--{flag}: cannot parse `{t}`: {e}"))
+        })
         .collect()
 }

@@ -16,7 +16,9 @@ use solvers::{Real, scenes};
 
 /// Flags of `convergence`.
 #[derive(Debug, Clone, clap::Parser)]
-#[command(about = "FLD Fig 4: residual vs iteration, iterations vs resolution, effect of sigma_eps")]
+#[command(
+    about = "FLD Fig 4: residual vs iteration, iterations vs resolution, effect of sigma_eps"
+)]
 pub struct Args {
     /// Shared flags.
     #[command(flatten)]
@@ -94,7 +96,12 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
     let q = args.common.quick;
     let n = args.n.unwrap_or(if q { 25 } else { 51 });
     let omegas: Vec<f64> = parse_list("omega", &args.omega)?;
-    let resolutions: Vec<usize> = parse_list("resolutions", args.resolutions.as_deref().unwrap_or(if q { "13,17,25" } else { "17,25,33,51,65,81" }))?;
+    let resolutions: Vec<usize> = parse_list(
+        "resolutions",
+        args.resolutions
+            .as_deref()
+            .unwrap_or(if q { "13,17,25" } else { "17,25,33,51,65,81" }),
+    )?;
     let eps: Vec<f64> = parse_list("sigma-eps", &args.sigma_eps)?;
     for &o in omegas.iter().chain([&args.omega_sweep]) {
         if !(o > 0.0 && o < 2.0) {
@@ -109,14 +116,42 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
     }
     let mut jobs = Vec::new();
     for &omega in &omegas {
-        jobs.push(Job { case: "sor", omega, n, sigma_eps: None, theta: 0.5, f32: false });
-        jobs.push(Job { case: "sor_theta1", omega, n, sigma_eps: None, theta: 1.0, f32: false });
+        jobs.push(Job {
+            case: "sor",
+            omega,
+            n,
+            sigma_eps: None,
+            theta: 0.5,
+            f32: false,
+        });
+        jobs.push(Job {
+            case: "sor_theta1",
+            omega,
+            n,
+            sigma_eps: None,
+            theta: 1.0,
+            f32: false,
+        });
     }
     for &r in &resolutions {
-        jobs.push(Job { case: "resolution", omega: args.omega_sweep, n: r, sigma_eps: None, theta: 0.5, f32: false });
+        jobs.push(Job {
+            case: "resolution",
+            omega: args.omega_sweep,
+            n: r,
+            sigma_eps: None,
+            theta: 0.5,
+            f32: false,
+        });
     }
     for &e in &eps {
-        jobs.push(Job { case: "sigma_eps", omega: args.omega_sweep, n, sigma_eps: Some(e), theta: 0.5, f32: true });
+        jobs.push(Job {
+            case: "sigma_eps",
+            omega: args.omega_sweep,
+            n,
+            sigma_eps: Some(e),
+            theta: 0.5,
+            f32: true,
+        });
     }
     let params = serde_json::json!({"n": n, "omega": omegas, "resolutions": resolutions, "omega_sweep": args.omega_sweep, "sigma_eps_times_L": eps, "max_iterations": args.max_iterations, "seed": args.seed, "limiter": "lp"});
     let mut out = Output::new("convergence", &args.common, params)?;
@@ -124,10 +159,29 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
     let (mut residuals, mut iters) = (Vec::new(), Vec::new());
     for job in &jobs {
         pb.set_message(format!("{} ω={} n={}", job.case, job.omega, job.n));
-        let (row, res) = if job.f32 { solve::<f32>(args, job, &pb)? } else { solve::<f64>(args, job, &pb)? };
-        out.timing(format!("{} ω={} n={} σε={:?} θ={}", job.case, job.omega, job.n, job.sigma_eps, job.theta), row.seconds);
+        let (row, res) = if job.f32 {
+            solve::<f32>(args, job, &pb)?
+        } else {
+            solve::<f64>(args, job, &pb)?
+        };
+        out.timing(
+            format!(
+                "{} ω={} n={} σε={:?} θ={}",
+                job.case, job.omega, job.n, job.sigma_eps, job.theta
+            ),
+            row.seconds,
+        );
         for (i, r) in res.into_iter().enumerate() {
-            residuals.push(ResidualRow { case: job.case, omega: job.omega, n: job.n, sigma_eps: row.sigma_eps, iteration: i + 1, residual: r, theta: job.theta, precision: row.precision });
+            residuals.push(ResidualRow {
+                case: job.case,
+                omega: job.omega,
+                n: job.n,
+                sigma_eps: row.sigma_eps,
+                iteration: i + 1,
+                residual: r,
+                theta: job.theta,
+                precision: row.precision,
+            });
         }
         iters.push(row);
         pb.inc(1);
@@ -137,30 +191,88 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
     out.csv("iterations.csv", &iters)?;
 
     let curve = |case: &str, key: &dyn Fn(&ResidualRow) -> bool| -> Vec<(f64, f64)> {
-        residuals.iter().filter(|r| r.case == case && key(r)).map(|r| (r.iteration as f64, r.residual)).collect()
+        residuals
+            .iter()
+            .filter(|r| r.case == case && key(r))
+            .map(|r| (r.iteration as f64, r.residual))
+            .collect()
     };
     let y = Axis::log("normalised RMS residual R̄/j̄");
     let mut series = Vec::new();
     for (c, &o) in omegas.iter().enumerate() {
-        series.push(Series::new(format!("ω = {o}"), curve("sor", &|r| r.omega == o), Style::Line, c));
-        series.push(Series::new(if c == 0 { "dashed: θ = 1 (Algorithm 1 verbatim)".to_string() } else { String::new() }, curve("sor_theta1", &|r| r.omega == o), Style::Dashed, c));
+        series.push(Series::new(
+            format!("ω = {o}"),
+            curve("sor", &|r| r.omega == o),
+            Style::Line,
+            c,
+        ));
+        series.push(Series::new(
+            if c == 0 {
+                "dashed: θ = 1 (Algorithm 1 verbatim)".to_string()
+            } else {
+                String::new()
+            },
+            curve("sor_theta1", &|r| r.omega == o),
+            Style::Dashed,
+            c,
+        ));
     }
-    plot(&out.path("fig4a_residual_vs_iteration.png"), &format!("FLD Fig 4a: FLD-LP on the vacuum cloud, {n}³, f64"), &Axis::lin("iteration"), &y, &series)?;
-    let pts: Vec<(f64, f64)> = iters.iter().filter(|r| r.case == "resolution" && r.converged).map(|r| (r.n as f64, r.iterations as f64)).collect();
+    plot(
+        &out.path("fig4a_residual_vs_iteration.png"),
+        &format!("FLD Fig 4a: FLD-LP on the vacuum cloud, {n}³, f64"),
+        &Axis::lin("iteration"),
+        &y,
+        &series,
+    )?;
+    let pts: Vec<(f64, f64)> = iters
+        .iter()
+        .filter(|r| r.case == "resolution" && r.converged)
+        .map(|r| (r.n as f64, r.iterations as f64))
+        .collect();
     plot(
         &out.path("fig4b_iterations_vs_resolution.png"),
-        &format!("FLD Fig 4b: iterations to R̄/j̄ < 1e-6, ω = {}", args.omega_sweep),
+        &format!(
+            "FLD Fig 4b: iterations to R̄/j̄ < 1e-6, ω = {}",
+            args.omega_sweep
+        ),
         &Axis::lin("grid resolution n (n³ voxels)"),
         &Axis::lin("iterations"),
-        &[Series::new("FLD-LP, f64", pts.clone(), Style::Line, 0), Series::new("", pts, Style::Points, 0)],
+        &[
+            Series::new("FLD-LP, f64", pts.clone(), Style::Line, 0),
+            Series::new("", pts, Style::Points, 0),
+        ],
     )?;
-    let series: Vec<Series> = eps.iter().enumerate().map(|(c, &e)| Series::new(format!("σε·L = {e:e}"), curve("sigma_eps", &|r| r.sigma_eps == e), Style::Line, c)).collect();
-    plot(&out.path("fig4c_sigma_eps.png"), &format!("FLD Fig 4c: extinction floor σε, {n}³, f32, ω = {}", args.omega_sweep), &Axis::lin("iteration"), &y, &series)?;
+    let series: Vec<Series> = eps
+        .iter()
+        .enumerate()
+        .map(|(c, &e)| {
+            Series::new(
+                format!("σε·L = {e:e}"),
+                curve("sigma_eps", &|r| r.sigma_eps == e),
+                Style::Line,
+                c,
+            )
+        })
+        .collect();
+    plot(
+        &out.path("fig4c_sigma_eps.png"),
+        &format!(
+            "FLD Fig 4c: extinction floor σε, {n}³, f32, ω = {}",
+            args.omega_sweep
+        ),
+        &Axis::lin("iteration"),
+        &y,
+        &series,
+    )?;
     out.finish()?;
     Ok(iters)
 }
 
-fn solve<T: Real>(args: &Args, job: &Job, pb: &indicatif::ProgressBar) -> Result<(IterRow, Vec<f64>)> {
+fn solve<T: Real>(
+    args: &Args,
+    job: &Job,
+    pb: &indicatif::ProgressBar,
+) -> Result<(IterRow, Vec<f64>)> {
     let medium = scenes::vacuum_cloud::<T>(job.n, args.seed)?;
     let cfg = FldConfig {
         limiter: FluxLimiter::LevermorePomraning,
@@ -173,7 +285,10 @@ fn solve<T: Real>(args: &Args, job: &Job, pb: &indicatif::ProgressBar) -> Result
     let sigma_eps = job.sigma_eps.unwrap_or(1e-3 / medium.grid.extent());
     let sol = CpuFld::new(&medium, &Boundary::Zero, &cfg)?.solve_observed(|it, r| {
         if it % 50 == 0 {
-            pb.set_message(format!("{} ω={} n={} it {it} R̄/j̄ {r:.2e}", job.case, job.omega, job.n));
+            pb.set_message(format!(
+                "{} ω={} n={} it {it} R̄/j̄ {r:.2e}",
+                job.case, job.omega, job.n
+            ));
         }
     });
     let row = IterRow {

@@ -32,8 +32,18 @@ pub struct Series {
 
 impl Series {
     /// A series.
-    pub fn new(label: impl Into<String>, points: Vec<(f64, f64)>, style: Style, color: usize) -> Self {
-        Self { label: label.into(), points, style, color }
+    pub fn new(
+        label: impl Into<String>,
+        points: Vec<(f64, f64)>,
+        style: Style,
+        color: usize,
+    ) -> Self {
+        Self {
+            label: label.into(),
+            points,
+            style,
+            color,
+        }
     }
 }
 
@@ -51,11 +61,19 @@ pub struct Axis {
 impl Axis {
     /// Linear axis fitted to the data.
     pub fn lin(label: &str) -> Self {
-        Self { label: label.to_string(), log: false, range: None }
+        Self {
+            label: label.to_string(),
+            log: false,
+            range: None,
+        }
     }
     /// Logarithmic axis fitted to the data.
     pub fn log(label: &str) -> Self {
-        Self { label: label.to_string(), log: true, range: None }
+        Self {
+            label: label.to_string(),
+            log: true,
+            range: None,
+        }
     }
     /// Fixes the range.
     pub fn range(mut self, lo: f64, hi: f64) -> Self {
@@ -95,7 +113,11 @@ fn register_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         // The bytes are a valid TTF shipped by the `dejavu` crate; failure only loses text.
-        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
+        let _ = plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            dejavu::sans::regular(),
+        );
     });
 }
 
@@ -128,7 +150,11 @@ pub fn plot(path: &Path, title: &str, x: &Axis, y: &Axis, series: &[Series]) -> 
     let err = |e: &dyn std::fmt::Display| anyhow!("plotting {}: {e}", path.display());
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let mut builder = ChartBuilder::on(&root);
-    builder.caption(title, ("sans-serif", 22)).margin(12).x_label_area_size(48).y_label_area_size(80);
+    builder
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(48)
+        .y_label_area_size(80);
     // plotters' log and linear coordinates are different types; draw through one generic body.
     macro_rules! draw {
         ($chart:expr) => {{
@@ -150,22 +176,38 @@ pub fn plot(path: &Path, title: &str, x: &Axis, y: &Axis, series: &[Series]) -> 
                     .points
                     .iter()
                     .copied()
-                    .filter(|p| p.0.is_finite() && p.1.is_finite() && (!x.log || p.0 > 0.0) && (!y.log || p.1 > 0.0))
+                    .filter(|p| {
+                        p.0.is_finite()
+                            && p.1.is_finite()
+                            && (!x.log || p.0 > 0.0)
+                            && (!y.log || p.1 > 0.0)
+                    })
                     .filter(|p| p.0 >= xr.0 && p.0 <= xr.1 && p.1 >= yr.0 && p.1 <= yr.1)
                     .collect();
                 let anno = match s.style {
-                    Style::Line => chart.draw_series(LineSeries::new(pts, color.stroke_width(2))).map_err(|e| err(&e))?,
+                    Style::Line => chart
+                        .draw_series(LineSeries::new(pts, color.stroke_width(2)))
+                        .map_err(|e| err(&e))?,
                     Style::Dashed => chart
                         .draw_series(DashedLineSeries::new(pts, 6, 4, color.stroke_width(2)))
                         .map_err(|e| err(&e))?,
-                    Style::Points => chart.draw_series(pts.into_iter().map(|p| Circle::new(p, 3, color.filled()))).map_err(|e| err(&e))?,
+                    Style::Points => chart
+                        .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, color.filled())))
+                        .map_err(|e| err(&e))?,
                 };
                 if !s.label.is_empty() {
                     let style = s.style;
-                    anno.label(s.label.as_str()).legend(move |(lx, ly)| match style {
-                        Style::Points => Circle::new((lx + 10, ly), 4, color.filled()).into_dyn(),
-                        _ => PathElement::new(vec![(lx, ly), (lx + 20, ly)], color.stroke_width(2)).into_dyn(),
-                    });
+                    anno.label(s.label.as_str())
+                        .legend(move |(lx, ly)| match style {
+                            Style::Points => {
+                                Circle::new((lx + 10, ly), 4, color.filled()).into_dyn()
+                            }
+                            _ => PathElement::new(
+                                vec![(lx, ly), (lx + 20, ly)],
+                                color.stroke_width(2),
+                            )
+                            .into_dyn(),
+                        });
                 }
             }
             if series.iter().any(|s| !s.label.is_empty()) {
@@ -181,11 +223,29 @@ pub fn plot(path: &Path, title: &str, x: &Axis, y: &Axis, series: &[Series]) -> 
         }};
     }
     match (x.log, y.log) {
-        (false, false) => draw!(builder.build_cartesian_2d(xr.0..xr.1, yr.0..yr.1).map_err(|e| err(&e))?),
-        (true, false) => draw!(builder.build_cartesian_2d((xr.0..xr.1).log_scale(), yr.0..yr.1).map_err(|e| err(&e))?),
-        (false, true) => draw!(builder.build_cartesian_2d(xr.0..xr.1, (yr.0..yr.1).log_scale()).map_err(|e| err(&e))?),
-        (true, true) => draw!(builder.build_cartesian_2d((xr.0..xr.1).log_scale(), (yr.0..yr.1).log_scale()).map_err(|e| err(&e))?),
+        (false, false) => draw!(
+            builder
+                .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)
+                .map_err(|e| err(&e))?
+        ),
+        (true, false) => draw!(
+            builder
+                .build_cartesian_2d((xr.0..xr.1).log_scale(), yr.0..yr.1)
+                .map_err(|e| err(&e))?
+        ),
+        (false, true) => draw!(
+            builder
+                .build_cartesian_2d(xr.0..xr.1, (yr.0..yr.1).log_scale())
+                .map_err(|e| err(&e))?
+        ),
+        (true, true) => draw!(
+            builder
+                .build_cartesian_2d((xr.0..xr.1).log_scale(), (yr.0..yr.1).log_scale())
+                .map_err(|e| err(&e))?
+        ),
     }
-    root.present().map_err(|e| err(&e)).with_context(|| format!("writing {}", path.display()))?;
+    root.present()
+        .map_err(|e| err(&e))
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

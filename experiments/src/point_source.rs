@@ -149,7 +149,10 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
         bail!("--n must be odd and ≥ 7 so a single voxel sits at the centre, got {n}");
     }
     if !(args.tau_extent.is_finite() && args.tau_extent > 0.0) {
-        bail!("--tau-extent must be finite and > 0, got {}", args.tau_extent);
+        bail!(
+            "--tau-extent must be finite and > 0, got {}",
+            args.tau_extent
+        );
     }
     let albedos: Vec<f64> = parse_list("albedo", &args.albedo)?;
     if let Some(a) = albedos.iter().find(|a| !(0.0..=1.0).contains(*a)) {
@@ -163,7 +166,9 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
             .map(|b| match b.trim() {
                 "zero" => Ok("zero"),
                 "analytic" => Ok("analytic"),
-                other => Err(anyhow::anyhow!("--boundary: `{other}` is not zero, analytic or auto")),
+                other => Err(anyhow::anyhow!(
+                    "--boundary: `{other}` is not zero, analytic or auto"
+                )),
             })
             .collect::<Result<_>>()?,
     };
@@ -171,14 +176,28 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
     for &albedo in &albedos {
         for &limiter in &limiters {
             let bs: Vec<&'static str> = if boundaries.is_empty() {
-                if limiter.is_constant() { vec!["analytic", "zero"] } else { vec!["zero"] }
+                if limiter.is_constant() {
+                    vec!["analytic", "zero"]
+                } else {
+                    vec!["zero"]
+                }
             } else {
                 boundaries.clone()
             };
             for &boundary in &bs {
-                cases.push(Case { limiter, boundary, knudsen: KnudsenSigma::Extinction, albedo });
+                cases.push(Case {
+                    limiter,
+                    boundary,
+                    knudsen: KnudsenSigma::Extinction,
+                    albedo,
+                });
                 if args.effective_albedo && !limiter.is_constant() {
-                    cases.push(Case { limiter, boundary, knudsen: KnudsenSigma::EffectiveAlbedo, albedo });
+                    cases.push(Case {
+                        limiter,
+                        boundary,
+                        knudsen: KnudsenSigma::EffectiveAlbedo,
+                        albedo,
+                    });
                 }
             }
         }
@@ -193,13 +212,25 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
     let mut profiles = Vec::new();
     let mut runs = Vec::new();
     for case in &cases {
-        pb.set_message(format!("{} {} α={}", case.limiter, case.boundary, case.albedo));
+        pb.set_message(format!(
+            "{} {} α={}",
+            case.limiter, case.boundary, case.albedo
+        ));
         let (run, prof) = match args.precision.as_str() {
             "f32" => solve_case::<f32>(args, n, case, &pb)?,
             "f64" => solve_case::<f64>(args, n, case, &pb)?,
             p => bail!("--precision must be f32 or f64, got `{p}`"),
         };
-        out.timing(format!("{} {} {} α={}", case.limiter, case.boundary, knudsen_name(case.knudsen), case.albedo), run.seconds);
+        out.timing(
+            format!(
+                "{} {} {} α={}",
+                case.limiter,
+                case.boundary,
+                knudsen_name(case.knudsen),
+                case.albedo
+            ),
+            run.seconds,
+        );
         runs.push(run);
         profiles.extend(prof);
         pb.inc(1);
@@ -208,7 +239,9 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
     out.csv("profiles.csv", &profiles)?;
     out.csv("runs.csv", &runs)?;
     let tau_max = args.tau_extent / 2.0 * 3f64.sqrt();
-    let taus: Vec<f64> = (0..300).map(|i| 0.02 * (tau_max / 0.02).powf(i as f64 / 299.0)).collect();
+    let taus: Vec<f64> = (0..300)
+        .map(|i| 0.02 * (tau_max / 0.02).powf(i as f64 / 299.0))
+        .collect();
     let analytic: Vec<AnalyticRow> = albedos
         .iter()
         .flat_map(|&a| {
@@ -227,15 +260,28 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
     Ok(runs)
 }
 
-fn solve_case<T: Real>(args: &Args, n: usize, case: &Case, pb: &indicatif::ProgressBar) -> Result<(RunRow, Vec<ProfileRow>)> {
-    let (medium, src) = scenes::point_source::<T>(n, args.tau_extent, case.albedo).context("building the point-source medium")?;
+fn solve_case<T: Real>(
+    args: &Args,
+    n: usize,
+    case: &Case,
+    pb: &indicatif::ProgressBar,
+) -> Result<(RunRow, Vec<ProfileRow>)> {
+    let (medium, src) = scenes::point_source::<T>(n, args.tau_extent, case.albedo)
+        .context("building the point-source medium")?;
     let g = medium.grid;
     let ps = PointSource::new(args.tau_extent, case.albedo)?;
     let centre = g.center(src[0], src[1], src[2]);
-    let dist = |p: [f64; 3]| ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2) + (p[2] - centre[2]).powi(2)).sqrt();
+    let dist = |p: [f64; 3]| {
+        ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2) + (p[2] - centre[2]).powi(2))
+            .sqrt()
+    };
     let boundary = match case.boundary {
         "analytic" => {
-            let sol = if case.limiter.is_constant() { Solution::Cda } else { Solution::Grosjean };
+            let sol = if case.limiter.is_constant() {
+                Solution::Cda
+            } else {
+                Solution::Grosjean
+            };
             Boundary::from_fn(&g, |p| ps.fluence(sol, dist(p)))
         }
         _ => Boundary::Zero,
@@ -252,7 +298,10 @@ fn solve_case<T: Real>(args: &Args, n: usize, case: &Case, pb: &indicatif::Progr
     let solver = CpuFld::new(&medium, &boundary, &cfg).context("setting up the solve")?;
     let sol = solver.solve_observed(|it, r| {
         if it % 25 == 0 {
-            pb.set_message(format!("{} {} α={} it {it} R̄/j̄ {r:.2e}", case.limiter, case.boundary, case.albedo));
+            pb.set_message(format!(
+                "{} {} α={} it {it} R̄/j̄ {r:.2e}",
+                case.limiter, case.boundary, case.albedo
+            ));
         }
     });
     let phi: Vec<f64> = sol.phi.iter().map(|x| x.f()).collect();
@@ -263,14 +312,21 @@ fn solve_case<T: Real>(args: &Args, n: usize, case: &Case, pb: &indicatif::Progr
         let r = dist(g.center(i, j, k));
         let tau = ps.sigma_t * r;
         if r > 0.0 && tau < 1.0 {
-            let (eg, ec) = (ps.fluence(Solution::Grosjean, r), ps.fluence(Solution::Cda, r));
+            let (eg, ec) = (
+                ps.fluence(Solution::Grosjean, r),
+                ps.fluence(Solution::Cda, r),
+            );
             ng += (v - eg).powi(2);
             dg += eg * eg;
             nc += (v - ec).powi(2);
             dc += ec * ec;
         }
     }
-    let method = if case.limiter.is_constant() { "cda" } else { "fld" };
+    let method = if case.limiter.is_constant() {
+        "cda"
+    } else {
+        "fld"
+    };
     let mut profile = Vec::new();
     let (mut np, mut dp) = (0.0, 0.0);
     for i in src[0] + 1..n {
@@ -315,49 +371,127 @@ fn solve_case<T: Real>(args: &Args, n: usize, case: &Case, pb: &indicatif::Progr
     Ok((run, profile))
 }
 
-fn plots(out: &Output, albedos: &[f64], limiters: &[FluxLimiter], profiles: &[ProfileRow], runs: &[RunRow], taus: &[f64], n: usize) -> Result<()> {
+fn plots(
+    out: &Output,
+    albedos: &[f64],
+    limiters: &[FluxLimiter],
+    profiles: &[ProfileRow],
+    runs: &[RunRow],
+    taus: &[f64],
+    n: usize,
+) -> Result<()> {
     let x = Axis::log("optical depth τ");
     let y = Axis::log("normalised fluence φ̃ (Eq 25)").range(1e-2, 1e4);
     let pick = |lim: &str, boundary: &str, knudsen: &str, a: f64| -> Vec<(f64, f64)> {
-        profiles.iter().filter(|p| p.limiter == lim && p.boundary == boundary && p.knudsen == knudsen && p.albedo == a).map(|p| (p.tau, p.phi_norm)).collect()
+        profiles
+            .iter()
+            .filter(|p| {
+                p.limiter == lim && p.boundary == boundary && p.knudsen == knudsen && p.albedo == a
+            })
+            .map(|p| (p.tau, p.phi_norm))
+            .collect()
     };
     let curves = |sol: Solution, style: Style, label_first: &str| -> Vec<Series> {
         albedos
             .iter()
             .enumerate()
-            .map(|(c, &a)| Series::new(if c == 0 { label_first.to_string() } else { String::new() }, taus.iter().map(|&t| (t, sol.normalized(t, a))).collect(), style, c))
+            .map(|(c, &a)| {
+                Series::new(
+                    if c == 0 {
+                        label_first.to_string()
+                    } else {
+                        String::new()
+                    },
+                    taus.iter().map(|&t| (t, sol.normalized(t, a))).collect(),
+                    style,
+                    c,
+                )
+            })
             .collect()
     };
     let panels = [
-        ("cda", "analytic", "fig5a_cda_analytic_boundary.png", "FLD Fig 5a: CDA, Dirichlet boundary from Eq 27"),
-        ("cda", "zero", "fig5b_cda_zero_boundary.png", "FLD Fig 5b: CDA, zero boundary"),
-        ("lp", "zero", "fig5c_fld_lp_zero_boundary.png", "FLD Fig 5c: FLD (Levermore–Pomraning), zero boundary"),
+        (
+            "cda",
+            "analytic",
+            "fig5a_cda_analytic_boundary.png",
+            "FLD Fig 5a: CDA, Dirichlet boundary from Eq 27",
+        ),
+        (
+            "cda",
+            "zero",
+            "fig5b_cda_zero_boundary.png",
+            "FLD Fig 5b: CDA, zero boundary",
+        ),
+        (
+            "lp",
+            "zero",
+            "fig5c_fld_lp_zero_boundary.png",
+            "FLD Fig 5c: FLD (Levermore–Pomraning), zero boundary",
+        ),
     ];
     for (lim, boundary, file, title) in panels {
-        if !profiles.iter().any(|p| p.limiter == lim && p.boundary == boundary) {
+        if !profiles
+            .iter()
+            .any(|p| p.limiter == lim && p.boundary == boundary)
+        {
             continue;
         }
         let mut series = curves(Solution::Cda, Style::Line, "CDA theory (Eq 27)");
-        series.extend(curves(Solution::Grosjean, Style::Dashed, "Grosjean (Eq 24)"));
+        series.extend(curves(
+            Solution::Grosjean,
+            Style::Dashed,
+            "Grosjean (Eq 24)",
+        ));
         for (c, &a) in albedos.iter().enumerate() {
-            series.push(Series::new(format!("α = {a}"), pick(lim, boundary, "sigma_t", a), Style::Points, c));
+            series.push(Series::new(
+                format!("α = {a}"),
+                pick(lim, boundary, "sigma_t", a),
+                Style::Points,
+                c,
+            ));
         }
         plot(&out.path(file), &format!("{title} ({n}³)"), &x, &y, &series)?;
     }
     // Limiter comparison: one panel per albedo, every limiter against Grosjean.
     if limiters.len() > 1 {
         for &a in albedos {
-            let mut series = vec![Series::new("Grosjean (Eq 24)", taus.iter().map(|&t| (t, Solution::Grosjean.normalized(t, a))).collect(), Style::Line, 7)];
+            let mut series = vec![Series::new(
+                "Grosjean (Eq 24)",
+                taus.iter()
+                    .map(|&t| (t, Solution::Grosjean.normalized(t, a)))
+                    .collect(),
+                Style::Line,
+                7,
+            )];
             for (c, lim) in limiters.iter().enumerate() {
-                series.push(Series::new(lim.to_string(), pick(&lim.to_string(), "zero", "sigma_t", a), Style::Points, c));
+                series.push(Series::new(
+                    lim.to_string(),
+                    pick(&lim.to_string(), "zero", "sigma_t", a),
+                    Style::Points,
+                    c,
+                ));
             }
-            plot(&out.path(&format!("limiters_albedo_{a}.png")), &format!("Flux limiters, zero boundary, α = {a} ({n}³)"), &x, &y, &series)?;
+            plot(
+                &out.path(&format!("limiters_albedo_{a}.png")),
+                &format!("Flux limiters, zero boundary, α = {a} ({n}³)"),
+                &x,
+                &y,
+                &series,
+            )?;
         }
         let mut series = Vec::new();
         for (c, lim) in limiters.iter().enumerate() {
-            for (knudsen, style, suffix) in [("sigma_t", Style::Line, ""), ("albedo_sigma_t", Style::Dashed, " (R with ασt)")] {
-                let pts: Vec<(f64, f64)> =
-                    runs.iter().filter(|r| r.limiter == lim.to_string() && r.boundary == "zero" && r.knudsen == knudsen).map(|r| (r.albedo, r.err_grosjean_near)).collect();
+            for (knudsen, style, suffix) in [
+                ("sigma_t", Style::Line, ""),
+                ("albedo_sigma_t", Style::Dashed, " (R with ασt)"),
+            ] {
+                let pts: Vec<(f64, f64)> = runs
+                    .iter()
+                    .filter(|r| {
+                        r.limiter == lim.to_string() && r.boundary == "zero" && r.knudsen == knudsen
+                    })
+                    .map(|r| (r.albedo, r.err_grosjean_near))
+                    .collect();
                 if !pts.is_empty() {
                     series.push(Series::new(format!("{lim}{suffix}"), pts, style, c));
                 }

@@ -42,23 +42,65 @@ pub fn run(args: &Args) -> Result<std::path::PathBuf> {
     if !(args.tau_max.is_finite() && args.tau_max > 0.01) {
         anyhow::bail!("--tau-max must be > 0.01, got {}", args.tau_max);
     }
-    let out = Output::new("point_source_analytic", &args.common, serde_json::json!({"albedo": albedos, "tau_max": args.tau_max}))?;
+    let out = Output::new(
+        "point_source_analytic",
+        &args.common,
+        serde_json::json!({"albedo": albedos, "tau_max": args.tau_max}),
+    )?;
     let npts = if args.common.quick { 60 } else { 400 };
-    let taus: Vec<f64> = (0..npts).map(|i| 0.01 * (args.tau_max / 0.01).powf(i as f64 / (npts - 1) as f64)).collect();
+    let taus: Vec<f64> = (0..npts)
+        .map(|i| 0.01 * (args.tau_max / 0.01).powf(i as f64 / (npts - 1) as f64))
+        .collect();
     let mut rows = Vec::new();
     for &a in &albedos {
         for &t in &taus {
-            rows.push(Row { albedo: a, tau: t, grosjean: grosjean(t, a), cda: cda(t, a), transport_limit: transport_limit(t, a), knudsen_grosjean: grosjean_knudsen(t, a) });
+            rows.push(Row {
+                albedo: a,
+                tau: t,
+                grosjean: grosjean(t, a),
+                cda: cda(t, a),
+                transport_limit: transport_limit(t, a),
+                knudsen_grosjean: grosjean_knudsen(t, a),
+            });
         }
     }
     out.csv("fig3.csv", &rows)?;
     let series = |f: &dyn Fn(f64, f64) -> f64| -> Vec<Series> {
-        albedos.iter().enumerate().map(|(c, &a)| Series::new(format!("α = {a}"), taus.iter().map(|&t| (t, f(t, a))).collect(), Style::Line, c)).collect()
+        albedos
+            .iter()
+            .enumerate()
+            .map(|(c, &a)| {
+                Series::new(
+                    format!("α = {a}"),
+                    taus.iter().map(|&t| (t, f(t, a))).collect(),
+                    Style::Line,
+                    c,
+                )
+            })
+            .collect()
     };
     let x = Axis::log("optical depth τ");
-    plot(&out.path("fig3a_grosjean.png"), "FLD Fig 3a: Grosjean (Eq 24)", &x, &Axis::log("normalised fluence φ̃ (Eq 25)").range(1e-5, 1e4), &series(&grosjean))?;
-    plot(&out.path("fig3b_cda.png"), "FLD Fig 3b: CDA Green's function (Eq 27)", &x, &Axis::log("normalised fluence φ̃ (Eq 25)").range(1e-5, 1e4), &series(&cda))?;
-    plot(&out.path("fig3c_knudsen.png"), "FLD Fig 3c: Knudsen number of the Grosjean solution", &x, &Axis::log("R = |∇φ|/(σt φ)"), &series(&grosjean_knudsen))?;
+    plot(
+        &out.path("fig3a_grosjean.png"),
+        "FLD Fig 3a: Grosjean (Eq 24)",
+        &x,
+        &Axis::log("normalised fluence φ̃ (Eq 25)").range(1e-5, 1e4),
+        &series(&grosjean),
+    )?;
+    plot(
+        &out.path("fig3b_cda.png"),
+        "FLD Fig 3b: CDA Green's function (Eq 27)",
+        &x,
+        &Axis::log("normalised fluence φ̃ (Eq 25)").range(1e-5, 1e4),
+        &series(&cda),
+    )?;
+    plot(
+        &out.path("fig3c_knudsen.png"),
+        "FLD Fig 3c: Knudsen number of the Grosjean solution",
+        &x,
+        &Axis::log("R = |∇φ|/(σt φ)"),
+        &series(&grosjean_knudsen),
+    )?;
     out.finish()?;
     Ok(out.dir.clone())
 }

@@ -42,7 +42,8 @@ pub fn grosjean_knudsen(tau: f64, albedo: f64) -> f64 {
     let a = 3.0 * albedo / (2.0 - albedo);
     let (eb, ed) = ((-tau).exp(), (-lambda * tau).exp());
     let phi = eb / (tau * tau) + a * ed / tau;
-    let dphi = -eb * (1.0 / (tau * tau) + 2.0 / (tau * tau * tau)) - a * ed * (lambda / tau + 1.0 / (tau * tau));
+    let dphi = -eb * (1.0 / (tau * tau) + 2.0 / (tau * tau * tau))
+        - a * ed * (lambda / tau + 1.0 / (tau * tau));
     dphi.abs() / phi
 }
 
@@ -82,17 +83,26 @@ impl PointSource {
     /// Validates σt > 0 finite and α ∈ [0, 1].
     pub fn new(sigma_t: f64, albedo: f64) -> Result<Self, ReferenceError> {
         if !(sigma_t.is_finite() && sigma_t > 0.0) {
-            return Err(ReferenceError::BadParameter { name: "sigma_t", value: sigma_t, reason: "must be finite and > 0" });
+            return Err(ReferenceError::BadParameter {
+                name: "sigma_t",
+                value: sigma_t,
+                reason: "must be finite and > 0",
+            });
         }
         if !(0.0..=1.0).contains(&albedo) {
-            return Err(ReferenceError::BadParameter { name: "albedo", value: albedo, reason: "must be in [0, 1]" });
+            return Err(ReferenceError::BadParameter {
+                name: "albedo",
+                value: albedo,
+                reason: "must be in [0, 1]",
+            });
         }
         Ok(Self { sigma_t, albedo })
     }
 
     /// Physical fluence φ(r) of `solution` at distance r > 0 from the source.
     pub fn fluence(&self, solution: Solution, r: f64) -> f64 {
-        self.sigma_t * self.sigma_t / (4.0 * std::f64::consts::PI) * solution.normalized(self.sigma_t * r, self.albedo)
+        self.sigma_t * self.sigma_t / (4.0 * std::f64::consts::PI)
+            * solution.normalized(self.sigma_t * r, self.albedo)
     }
 
     /// FLD Eq 25: the normalised fluence φ̃ = 4πφ/σt² of a physical fluence φ.
@@ -120,10 +130,23 @@ mod tests {
                 // The integrand 4πr²φ(r)·2u is bounded and → 0 as u → 0.
                 let f = |u: f64| {
                     let r = u * u;
-                    if r == 0.0 { 0.0 } else { 4.0 * std::f64::consts::PI * r * r * ps.fluence(sol, r) * 2.0 * u }
+                    if r == 0.0 {
+                        0.0
+                    } else {
+                        4.0 * std::f64::consts::PI * r * r * ps.fluence(sol, r) * 2.0 * u
+                    }
                 };
-                let total = sa * simpson(f, 0.0, (60.0 / ((1.0 - a).sqrt() * ps.sigma_t)).sqrt(), 200_000);
-                assert!((total - 1.0).abs() < 1e-6, "{sol:?} α={a}: absorbed power {total}");
+                let total = sa
+                    * simpson(
+                        f,
+                        0.0,
+                        (60.0 / ((1.0 - a).sqrt() * ps.sigma_t)).sqrt(),
+                        200_000,
+                    );
+                assert!(
+                    (total - 1.0).abs() < 1e-6,
+                    "{sol:?} α={a}: absorbed power {total}"
+                );
             }
         }
     }
@@ -142,7 +165,12 @@ mod tests {
                 let lap = (fp - 2.0 * f0 + fm) / (h * h) + 2.0 / r * (fp - fm) / (2.0 * h);
                 // Tolerance relative to the size of the cancelling terms, d·2φ/r² (and the O(h²) error).
                 let scale = (d * 2.0 * f0 / (r * r)).max(sa * f0);
-                assert!((d * lap - sa * f0).abs() <= 1e-5 * scale, "α={a} r={r}: {} vs {}", d * lap, sa * f0);
+                assert!(
+                    (d * lap - sa * f0).abs() <= 1e-5 * scale,
+                    "α={a} r={r}: {} vs {}",
+                    d * lap,
+                    sa * f0
+                );
             }
         }
     }
@@ -154,8 +182,12 @@ mod tests {
             for tau in [0.1, 1.0, 3.0] {
                 let h = 1e-5;
                 let g = |t: f64| t * t * transport_limit(t, a);
-                let lhs = (g(tau + h) - g(tau - h)) / (2.0 * h) / (tau * tau) + (1.0 - a) * transport_limit(tau, a);
-                assert!(lhs.abs() < 1e-6 * transport_limit(tau, a), "α={a} τ={tau}: {lhs}");
+                let lhs = (g(tau + h) - g(tau - h)) / (2.0 * h) / (tau * tau)
+                    + (1.0 - a) * transport_limit(tau, a);
+                assert!(
+                    lhs.abs() < 1e-6 * transport_limit(tau, a),
+                    "α={a} τ={tau}: {lhs}"
+                );
             }
         }
     }
@@ -177,7 +209,11 @@ mod tests {
             } else {
                 1.0 + 2.0 / far
             };
-            assert!((grosjean_knudsen(far, a) - expected).abs() < 1e-3, "α={a}: {} vs {expected}", grosjean_knudsen(far, a));
+            assert!(
+                (grosjean_knudsen(far, a) - expected).abs() < 1e-3,
+                "α={a}: {} vs {expected}",
+                grosjean_knudsen(far, a)
+            );
         }
         for tau in [0.01, 0.5, 4.0] {
             assert!((grosjean(tau, 0.0) / transport_limit(tau, 0.0) - 1.0).abs() < 1e-14);

@@ -6,7 +6,9 @@ use thiserror::Error;
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum SolverError {
     /// A grid needs at least 3 voxels per axis: one interior voxel between two boundary layers.
-    #[error("grid dimension {axis} = {n} is too small: at least 3 voxels are needed (one interior voxel between the two Dirichlet boundary layers)")]
+    #[error(
+        "grid dimension {axis} = {n} is too small: at least 3 voxels are needed (one interior voxel between the two Dirichlet boundary layers)"
+    )]
     GridTooSmall {
         /// Axis name, `x`, `y` or `z`.
         axis: char,
@@ -59,6 +61,8 @@ pub enum SolverError {
         reason: &'static str,
     },
     /// The flux limiter name could not be parsed.
-    #[error("unknown flux limiter `{0}`; expected one of cda, sum, max, kershaw, larsen<n> (e.g. larsen2), lp")]
+    #[error(
+        "unknown flux limiter `{0}`; expected one of cda, sum, max, kershaw, larsen<n> (e.g. larsen2), lp"
+    )]
     UnknownLimiter(String),
 }

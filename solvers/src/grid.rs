@@ -45,7 +45,11 @@ impl Grid {
         n[0].checked_mul(n[1])
             .and_then(|v| v.checked_mul(n[2]))
             .filter(|&v| v <= isize::MAX as usize / 16)
-            .ok_or(SolverError::GridTooLarge { nx: n[0], ny: n[1], nz: n[2] })?;
+            .ok_or(SolverError::GridTooLarge {
+                nx: n[0],
+                ny: n[1],
+                nz: n[2],
+            })?;
         Ok(Self { n, dl, origin })
     }
 
@@ -85,7 +89,11 @@ impl Grid {
 
     /// Edge lengths of the box, `n·dl` per axis.
     pub fn size(&self) -> [f64; 3] {
-        [self.n[0] as f64 * self.dl, self.n[1] as f64 * self.dl, self.n[2] as f64 * self.dl]
+        [
+            self.n[0] as f64 * self.dl,
+            self.n[1] as f64 * self.dl,
+            self.n[2] as f64 * self.dl,
+        ]
     }
 
     /// The grid extent L of FLD Section 5 (used for σ_ε = 10⁻³/L): the longest edge.
@@ -129,9 +137,18 @@ mod tests {
 
     #[test]
     fn bad_grids_are_errors() {
-        assert!(matches!(Grid::new([2, 5, 5], 1.0), Err(SolverError::GridTooSmall { axis: 'x', n: 2 })));
-        assert!(matches!(Grid::new([5, 5, 5], 0.0), Err(SolverError::BadVoxelSize(_))));
-        assert!(matches!(Grid::new([5, 5, 5], f64::NAN), Err(SolverError::BadVoxelSize(_))));
+        assert!(matches!(
+            Grid::new([2, 5, 5], 1.0),
+            Err(SolverError::GridTooSmall { axis: 'x', n: 2 })
+        ));
+        assert!(matches!(
+            Grid::new([5, 5, 5], 0.0),
+            Err(SolverError::BadVoxelSize(_))
+        ));
+        assert!(matches!(
+            Grid::new([5, 5, 5], f64::NAN),
+            Err(SolverError::BadVoxelSize(_))
+        ));
         assert!(Grid::new([usize::MAX / 2, 4, 4], 1.0).is_err());
     }
 }

@@ -21,14 +21,29 @@ impl<T: Real> Medium<T> {
     /// A homogeneous medium without emission.
     pub fn homogeneous(grid: Grid, sigma_t: f64, albedo: f64) -> Result<Self, SolverError> {
         let n = grid.len();
-        let m = Self { grid, sigma_t: vec![T::c(sigma_t); n], albedo: vec![T::c(albedo); n], emission: vec![T::zero(); n] };
+        let m = Self {
+            grid,
+            sigma_t: vec![T::c(sigma_t); n],
+            albedo: vec![T::c(albedo); n],
+            emission: vec![T::zero(); n],
+        };
         m.validate()?;
         Ok(m)
     }
 
     /// Builds a medium from fields and validates it.
-    pub fn new(grid: Grid, sigma_t: Vec<T>, albedo: Vec<T>, emission: Vec<T>) -> Result<Self, SolverError> {
-        let m = Self { grid, sigma_t, albedo, emission };
+    pub fn new(
+        grid: Grid,
+        sigma_t: Vec<T>,
+        albedo: Vec<T>,
+        emission: Vec<T>,
+    ) -> Result<Self, SolverError> {
+        let m = Self {
+            grid,
+            sigma_t,
+            albedo,
+            emission,
+        };
         m.validate()?;
         Ok(m)
     }
@@ -36,20 +51,50 @@ impl<T: Real> Medium<T> {
     /// Checks field sizes and ranges: σt ≥ 0 finite, α ∈ [0, 1], j ≥ 0 finite.
     pub fn validate(&self) -> Result<(), SolverError> {
         let n = self.grid.len();
-        for (field, v) in [("sigma_t", &self.sigma_t), ("albedo", &self.albedo), ("emission", &self.emission)] {
+        for (field, v) in [
+            ("sigma_t", &self.sigma_t),
+            ("albedo", &self.albedo),
+            ("emission", &self.emission),
+        ] {
             if v.len() != n {
-                return Err(SolverError::FieldSize { field, expected: n, got: v.len() });
+                return Err(SolverError::FieldSize {
+                    field,
+                    expected: n,
+                    got: v.len(),
+                });
             }
         }
-        let check = |field: &'static str, v: &[T], ok: &dyn Fn(f64) -> bool, range: &'static str| {
-            match v.iter().position(|x| !ok(x.f())) {
-                Some(index) => Err(SolverError::FieldValue { field, index, value: v[index].f(), range }),
+        let check =
+            |field: &'static str, v: &[T], ok: &dyn Fn(f64) -> bool, range: &'static str| match v
+                .iter()
+                .position(|x| !ok(x.f()))
+            {
+                Some(index) => Err(SolverError::FieldValue {
+                    field,
+                    index,
+                    value: v[index].f(),
+                    range,
+                }),
                 None => Ok(()),
-            }
-        };
-        check("sigma_t", &self.sigma_t, &|x| x.is_finite() && x >= 0.0, "[0, ∞)")?;
-        check("albedo", &self.albedo, &|x| (0.0..=1.0).contains(&x), "[0, 1]")?;
-        check("emission", &self.emission, &|x| x.is_finite() && x >= 0.0, "[0, ∞)")?;
+            };
+        check(
+            "sigma_t",
+            &self.sigma_t,
+            &|x| x.is_finite() && x >= 0.0,
+            "[0, ∞)",
+        )?;
+        check(
+            "albedo",
+            &self.albedo,
+            &|x| (0.0..=1.0).contains(&x),
+            "[0, 1]",
+        )?;
+        check(
+            "emission",
+            &self.emission,
+            &|x| x.is_finite() && x >= 0.0,
+            "[0, ∞)",
+        )?;
         Ok(())
     }
 
@@ -62,6 +107,11 @@ impl<T: Real> Medium<T> {
     /// The same medium converted to another precision.
     pub fn cast<U: Real>(&self) -> Medium<U> {
         let conv = |v: &[T]| v.iter().map(|x| U::c(x.f())).collect();
-        Medium { grid: self.grid, sigma_t: conv(&self.sigma_t), albedo: conv(&self.albedo), emission: conv(&self.emission) }
+        Medium {
+            grid: self.grid,
+            sigma_t: conv(&self.sigma_t),
+            albedo: conv(&self.albedo),
+            emission: conv(&self.emission),
+        }
     }
 }

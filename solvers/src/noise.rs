@@ -44,7 +44,9 @@ impl Perlin {
             let j = (rng.next_u64() % (i as u64 + 1)) as usize;
             p.swap(i, j);
         }
-        Self { perm: std::array::from_fn(|i| p[i & 255]) }
+        Self {
+            perm: std::array::from_fn(|i| p[i & 255]),
+        }
     }
 
     fn grad(hash: u8, x: f64, y: f64, z: f64) -> f64 {
@@ -73,13 +75,25 @@ impl Perlin {
         let fade = |t: f64| t * t * t * (t * (t * 6.0 - 15.0) + 10.0);
         let (u, v, w) = (fade(x), fade(y), fade(z));
         let pm = &self.perm;
-        let h = |i: usize, j: usize, k: usize| pm[pm[pm[c[0] + i] as usize + c[1] + j] as usize + c[2] + k];
+        let h = |i: usize, j: usize, k: usize| {
+            pm[pm[pm[c[0] + i] as usize + c[1] + j] as usize + c[2] + k]
+        };
         let lerp = |t: f64, a: f64, b: f64| a + t * (b - a);
-        let g = |i: usize, j: usize, k: usize| Self::grad(h(i, j, k), x - i as f64, y - j as f64, z - k as f64);
+        let g = |i: usize, j: usize, k: usize| {
+            Self::grad(h(i, j, k), x - i as f64, y - j as f64, z - k as f64)
+        };
         lerp(
             w,
-            lerp(v, lerp(u, g(0, 0, 0), g(1, 0, 0)), lerp(u, g(0, 1, 0), g(1, 1, 0))),
-            lerp(v, lerp(u, g(0, 0, 1), g(1, 0, 1)), lerp(u, g(0, 1, 1), g(1, 1, 1))),
+            lerp(
+                v,
+                lerp(u, g(0, 0, 0), g(1, 0, 0)),
+                lerp(u, g(0, 1, 0), g(1, 1, 0)),
+            ),
+            lerp(
+                v,
+                lerp(u, g(0, 0, 1), g(1, 0, 1)),
+                lerp(u, g(0, 1, 1), g(1, 1, 1)),
+            ),
         )
     }
 
@@ -105,7 +119,11 @@ mod tests {
         let mut rng = SplitMix64::new(1);
         let mut sumsq = 0.0;
         for _ in 0..2000 {
-            let p = [rng.next_f64() * 10.0, rng.next_f64() * 10.0, rng.next_f64() * 10.0];
+            let p = [
+                rng.next_f64() * 10.0,
+                rng.next_f64() * 10.0,
+                rng.next_f64() * 10.0,
+            ];
             let v = a.at(p);
             assert_eq!(v, b.at(p));
             assert!(v.abs() <= 1.5, "{v}");

@@ -8,7 +8,17 @@ use std::iter::Sum;
 
 /// A floating-point scalar a solver can run in (`f32` or `f64`).
 pub trait Real:
-    Float + FloatConst + FromPrimitive + ToPrimitive + Sum + Send + Sync + Debug + Display + Default + 'static
+    Float
+    + FloatConst
+    + FromPrimitive
+    + ToPrimitive
+    + Sum
+    + Send
+    + Sync
+    + Debug
+    + Display
+    + Default
+    + 'static
 {
     /// Short name used in CSV files and reports: `"f32"` or `"f64"`.
     const NAME: &'static str;

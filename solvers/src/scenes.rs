@@ -8,7 +8,11 @@ use crate::{Grid, Medium, Real, SolverError};
 /// `albedo`, and one emitting voxel at the centre with j = 1/Δl³ (a unit-power source).
 ///
 /// Returns the medium and the centre voxel's coordinates.
-pub fn point_source<T: Real>(n: usize, tau_extent: f64, albedo: f64) -> Result<(Medium<T>, [usize; 3]), SolverError> {
+pub fn point_source<T: Real>(
+    n: usize,
+    tau_extent: f64,
+    albedo: f64,
+) -> Result<(Medium<T>, [usize; 3]), SolverError> {
     if n % 2 == 0 {
         return Err(SolverError::BadParameter {
             name: "n",
@@ -17,7 +21,11 @@ pub fn point_source<T: Real>(n: usize, tau_extent: f64, albedo: f64) -> Result<(
         });
     }
     if !(tau_extent.is_finite() && tau_extent > 0.0) {
-        return Err(SolverError::BadParameter { name: "tau_extent", value: tau_extent, reason: "must be finite and > 0" });
+        return Err(SolverError::BadParameter {
+            name: "tau_extent",
+            value: tau_extent,
+            reason: "must be finite and > 0",
+        });
     }
     let grid = Grid::cube(n, 1.0)?;
     let mut m = Medium::homogeneous(grid, tau_extent, albedo)?;
@@ -33,10 +41,18 @@ pub fn point_source<T: Real>(n: usize, tau_extent: f64, albedo: f64) -> Result<(
 pub fn vacuum_cloud<T: Real>(n: usize, seed: u64) -> Result<Medium<T>, SolverError> {
     let grid = Grid::cube(n, 1.0)?;
     let noise = Perlin::new(seed);
-    let inside = |p: [f64; 3]| (p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2) + (p[2] - 0.5).powi(2) <= 0.35 * 0.35;
+    let inside = |p: [f64; 3]| {
+        (p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2) + (p[2] - 0.5).powi(2) <= 0.35 * 0.35
+    };
     let sigma_t = grid.sample(|p| T::c(if inside(p) { 20.0 } else { 0.0 }));
     let albedo = grid.sample(|p| T::c(if inside(p) { 0.9 } else { 0.0 }));
-    let emission = grid.sample(|p| T::c(if inside(p) { (0.5 + noise.fbm(p.map(|x| 4.0 * x), 3)).max(0.0) } else { 0.0 }));
+    let emission = grid.sample(|p| {
+        T::c(if inside(p) {
+            (0.5 + noise.fbm(p.map(|x| 4.0 * x), 3)).max(0.0)
+        } else {
+            0.0
+        })
+    });
     Medium::new(grid, sigma_t, albedo, emission)
 }
 
@@ -44,12 +60,20 @@ pub fn vacuum_cloud<T: Real>(n: usize, seed: u64) -> Result<Medium<T>, SolverErr
 /// probability `vacuum_fraction` vacuum (σt = 0), otherwise σt log-uniform in
 /// [0.1, 1000]/L; albedo uniform in [0, 1] with 10 % of voxels exactly 1; emission log-uniform
 /// in [10⁻³, 10³] in 5 % of voxels, 0 elsewhere.
-pub fn random_heterogeneous<T: Real>(n: [usize; 3], seed: u64, vacuum_fraction: f64) -> Result<Medium<T>, SolverError> {
+pub fn random_heterogeneous<T: Real>(
+    n: [usize; 3],
+    seed: u64,
+    vacuum_fraction: f64,
+) -> Result<Medium<T>, SolverError> {
     let grid = Grid::new(n, 1.0 / n[0] as f64)?;
     let l = grid.extent();
     let mut rng = SplitMix64::new(seed);
     let len = grid.len();
-    let (mut sigma_t, mut albedo, mut emission) = (Vec::with_capacity(len), Vec::with_capacity(len), Vec::with_capacity(len));
+    let (mut sigma_t, mut albedo, mut emission) = (
+        Vec::with_capacity(len),
+        Vec::with_capacity(len),
+        Vec::with_capacity(len),
+    );
     for _ in 0..len {
         let vac = rng.next_f64() < vacuum_fraction;
         let s = 10f64.powf(-1.0 + 4.0 * rng.next_f64()) / l;

@@ -25,17 +25,30 @@ struct Args {
 
 fn main() -> Result<()> {
     let args = Args::parse();
-    let root = args.out.clone().unwrap_or_else(|| workspace_root().join("results"));
-    let common = |name: &str| CommonArgs { out: Some(root.join(name)), quick: args.quick, no_progress: args.no_progress };
+    let root = args
+        .out
+        .clone()
+        .unwrap_or_else(|| workspace_root().join("results"));
+    let common = |name: &str| CommonArgs {
+        out: Some(root.join(name)),
+        quick: args.quick,
+        no_progress: args.no_progress,
+    };
     let t0 = Instant::now();
     let mut times = Vec::new();
 
     eprintln!("[1/4] point_source_analytic (FLD Fig 3)");
     let t = Instant::now();
-    point_source_analytic::run(&point_source_analytic::Args::parse_from(["point_source_analytic"]).with_common(common("point_source_analytic")))?;
+    point_source_analytic::run(
+        &point_source_analytic::Args::parse_from(["point_source_analytic"])
+            .with_common(common("point_source_analytic")),
+    )?;
     times.push(("point_source_analytic", t.elapsed().as_secs_f64()));
 
-    eprintln!("[2/4] point_source (FLD Fig 5: CDA and FLD-LP, {}³)", if args.quick { 31 } else { 127 });
+    eprintln!(
+        "[2/4] point_source (FLD Fig 5: CDA and FLD-LP, {}³)",
+        if args.quick { 31 } else { 127 }
+    );
     let t = Instant::now();
     let mut ps = point_source::Args::parse_from(["point_source", "--limiter", "cda,lp"]);
     ps.common = common("point_source");
@@ -45,7 +58,14 @@ fn main() -> Result<()> {
     let n_lim = if args.quick { 21 } else { 63 };
     eprintln!("[3/4] flux_limiters (every limiter, both Knudsen forms, {n_lim}³)");
     let t = Instant::now();
-    let mut fl = point_source::Args::parse_from(["point_source", "--limiter", "all", "--effective-albedo", "--boundary", "zero"]);
+    let mut fl = point_source::Args::parse_from([
+        "point_source",
+        "--limiter",
+        "all",
+        "--effective-albedo",
+        "--boundary",
+        "zero",
+    ]);
     fl.n = Some(n_lim);
     fl.common = common("flux_limiters");
     let limiters = point_source::run(&fl)?;
@@ -76,7 +96,14 @@ impl WithCommon for point_source_analytic::Args {
     }
 }
 
-fn report(args: &Args, fig5: &[point_source::RunRow], lim: &[point_source::RunRow], conv: &[convergence::IterRow], times: &[(&str, f64)], total: f64) -> String {
+fn report(
+    args: &Args,
+    fig5: &[point_source::RunRow],
+    lim: &[point_source::RunRow],
+    conv: &[convergence::IterRow],
+    times: &[(&str, f64)],
+    total: f64,
+) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# scatterbench results\n");
     let _ = writeln!(
@@ -86,21 +113,33 @@ fn report(args: &Args, fig5: &[point_source::RunRow], lim: &[point_source::RunRo
         if args.quick { " -- --quick" } else { "" },
         git_revision(),
         total,
-        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
     );
     let _ = writeln!(s, "| experiment | wall time (s) |\n|---|---|");
     for (name, t) in times {
         let _ = writeln!(s, "| `{name}` | {t:.1} |");
     }
 
-    let _ = writeln!(s, "\n## FLD Fig 3: analytic point-source solutions (`point_source_analytic/`)\n");
+    let _ = writeln!(
+        s,
+        "\n## FLD Fig 3: analytic point-source solutions (`point_source_analytic/`)\n"
+    );
     for f in ["fig3a_grosjean.png", "fig3b_cda.png", "fig3c_knudsen.png"] {
         let _ = writeln!(s, "![{f}](point_source_analytic/{f})");
     }
 
     let n5 = fig5.first().map(|r| r.n).unwrap_or(0);
-    let _ = writeln!(s, "\n## FLD Fig 5: point source, numeric vs analytic (`point_source/`, {n5}³, τ = 4 across)\n");
-    for f in ["fig5a_cda_analytic_boundary.png", "fig5b_cda_zero_boundary.png", "fig5c_fld_lp_zero_boundary.png"] {
+    let _ = writeln!(
+        s,
+        "\n## FLD Fig 5: point source, numeric vs analytic (`point_source/`, {n5}³, τ = 4 across)\n"
+    );
+    for f in [
+        "fig5a_cda_analytic_boundary.png",
+        "fig5b_cda_zero_boundary.png",
+        "fig5c_fld_lp_zero_boundary.png",
+    ] {
         let _ = writeln!(s, "![{f}](point_source/{f})");
     }
     let _ = writeln!(
@@ -108,14 +147,29 @@ fn report(args: &Args, fig5: &[point_source::RunRow], lim: &[point_source::RunRo
         "\nRelative L2 error of φ over all voxels with 0 < τ < 1 (near the source), against Grosjean (FLD Eq 24) \
          and, for CDA, against its own theory (FLD Eq 27). Solver: red-black SOR, ω = 2/(1 + sin(π/n)), R̄/j̄ < 10⁻⁶, f64.\n"
     );
-    let _ = writeln!(s, "| albedo | CDA analytic bdy vs Eq 27 | CDA zero bdy vs Eq 27 | CDA zero bdy vs Grosjean | FLD-LP zero bdy vs Grosjean | FLD-LP iterations | FLD-LP seconds |");
+    let _ = writeln!(
+        s,
+        "| albedo | CDA analytic bdy vs Eq 27 | CDA zero bdy vs Eq 27 | CDA zero bdy vs Grosjean | FLD-LP zero bdy vs Grosjean | FLD-LP iterations | FLD-LP seconds |"
+    );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|");
-    let find = |rows: &[point_source::RunRow], lim: &str, b: &str, k: &str, a: f64| rows.iter().find(|r| r.limiter == lim && r.boundary == b && r.knudsen == k && r.albedo == a).cloned();
+    let find = |rows: &[point_source::RunRow], lim: &str, b: &str, k: &str, a: f64| {
+        rows.iter()
+            .find(|r| r.limiter == lim && r.boundary == b && r.knudsen == k && r.albedo == a)
+            .cloned()
+    };
     let mut albedos: Vec<f64> = fig5.iter().map(|r| r.albedo).collect();
     albedos.dedup();
     for &a in &albedos {
-        let (ca, cz, lp) = (find(fig5, "cda", "analytic", "sigma_t", a), find(fig5, "cda", "zero", "sigma_t", a), find(fig5, "lp", "zero", "sigma_t", a));
-        let f = |r: &Option<point_source::RunRow>, g: fn(&point_source::RunRow) -> f64| r.as_ref().map(|r| format!("{:.4}", g(r))).unwrap_or_else(|| "–".into());
+        let (ca, cz, lp) = (
+            find(fig5, "cda", "analytic", "sigma_t", a),
+            find(fig5, "cda", "zero", "sigma_t", a),
+            find(fig5, "lp", "zero", "sigma_t", a),
+        );
+        let f = |r: &Option<point_source::RunRow>, g: fn(&point_source::RunRow) -> f64| {
+            r.as_ref()
+                .map(|r| format!("{:.4}", g(r)))
+                .unwrap_or_else(|| "–".into())
+        };
         let _ = writeln!(
             s,
             "| {a} | {} | {} | {} | {} | {} | {} |",
@@ -123,13 +177,22 @@ fn report(args: &Args, fig5: &[point_source::RunRow], lim: &[point_source::RunRo
             f(&cz, |r| r.err_cda_near),
             f(&cz, |r| r.err_grosjean_near),
             f(&lp, |r| r.err_grosjean_near),
-            lp.as_ref().map(|r| format!("{}{}", r.iterations, if r.converged { "" } else { " (not converged)" })).unwrap_or_default(),
-            f(&lp, |r| r.seconds)
+            lp.as_ref()
+                .map(|r| format!(
+                    "{}{}",
+                    r.iterations,
+                    if r.converged { "" } else { " (not converged)" }
+                ))
+                .unwrap_or_default(),
+            lp.as_ref().map(|r| format!("{:.1}", r.seconds)).unwrap_or_default()
         );
     }
 
     let nl = lim.first().map(|r| r.n).unwrap_or(0);
-    let _ = writeln!(s, "\n## Flux-limiter comparison (`flux_limiters/`, {nl}³, zero boundary)\n");
+    let _ = writeln!(
+        s,
+        "\n## Flux-limiter comparison (`flux_limiters/`, {nl}³, zero boundary)\n"
+    );
     let _ = writeln!(
         s,
         "Relative L2 error against Grosjean over voxels with 0 < τ < 1, for every limiter of FLD Table 2, with the paper's Knudsen number \
@@ -148,7 +211,15 @@ fn report(args: &Args, fig5: &[point_source::RunRow], lim: &[point_source::RunRo
     }
     let _ = write!(s, "| albedo |");
     for (l, k) in &cols {
-        let _ = write!(s, " {l}{} |", if *k == "albedo_sigma_t" { " (ασt)" } else { "" });
+        let _ = write!(
+            s,
+            " {l}{} |",
+            if *k == "albedo_sigma_t" {
+                " (ασt)"
+            } else {
+                ""
+            }
+        );
     }
     let _ = write!(s, "\n|---|");
     for _ in &cols {
@@ -160,7 +231,10 @@ fn report(args: &Args, fig5: &[point_source::RunRow], lim: &[point_source::RunRo
     lim_albedos.sort_by(f64::total_cmp);
     lim_albedos.dedup();
     for &a in &lim_albedos {
-        let vals: Vec<Option<f64>> = cols.iter().map(|(l, k)| find(lim, l, "zero", k, a).map(|r| r.err_grosjean_near)).collect();
+        let vals: Vec<Option<f64>> = cols
+            .iter()
+            .map(|(l, k)| find(lim, l, "zero", k, a).map(|r| r.err_grosjean_near))
+            .collect();
         let best = vals.iter().flatten().copied().fold(f64::INFINITY, f64::min);
         let _ = write!(s, "| {a} |");
         for v in vals {
@@ -178,22 +252,55 @@ fn report(args: &Args, fig5: &[point_source::RunRow], lim: &[point_source::RunRo
         }
         let _ = writeln!(s);
     }
-    let unconverged: Vec<String> = lim.iter().filter(|r| !r.converged).map(|r| format!("{} ({}) α={}", r.limiter, r.knudsen, r.albedo)).collect();
+    let unconverged: Vec<String> = lim
+        .iter()
+        .filter(|r| !r.converged)
+        .map(|r| format!("{} ({}) α={}", r.limiter, r.knudsen, r.albedo))
+        .collect();
     if !unconverged.is_empty() {
-        let _ = writeln!(s, "\nNot converged within the iteration cap: {}.", unconverged.join(", "));
+        let _ = writeln!(
+            s,
+            "\nNot converged within the iteration cap: {}.",
+            unconverged.join(", ")
+        );
     }
     let _ = writeln!(s, "\n![limiter errors](flux_limiters/limiter_errors.png)");
     for &a in &lim_albedos {
-        let _ = writeln!(s, "![limiters α = {a}](flux_limiters/limiters_albedo_{a}.png)");
+        let _ = writeln!(
+            s,
+            "![limiters α = {a}](flux_limiters/limiters_albedo_{a}.png)"
+        );
     }
 
-    let _ = writeln!(s, "\n## FLD Fig 4: convergence (`convergence/`, spherical cloud in vacuum, Perlin emission, FLD-LP)\n");
-    for f in ["fig4a_residual_vs_iteration.png", "fig4b_iterations_vs_resolution.png", "fig4c_sigma_eps.png"] {
+    let _ = writeln!(
+        s,
+        "\n## FLD Fig 4: convergence (`convergence/`, spherical cloud in vacuum, Perlin emission, FLD-LP)\n"
+    );
+    for f in [
+        "fig4a_residual_vs_iteration.png",
+        "fig4b_iterations_vs_resolution.png",
+        "fig4c_sigma_eps.png",
+    ] {
         let _ = writeln!(s, "![{f}](convergence/{f})");
     }
-    let _ = writeln!(s, "\n| case | ω | n | σε | θ | precision | iterations | converged | seconds |\n|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "\n| case | ω | n | σε | θ | precision | iterations | converged | seconds |\n|---|---|---|---|---|---|---|---|---|"
+    );
     for r in conv {
-        let _ = writeln!(s, "| {} | {} | {} | {:.0e} | {} | {} | {} | {} | {:.2} |", r.case, r.omega, r.n, r.sigma_eps, r.theta, r.precision, r.iterations, r.converged, r.seconds);
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.0e} | {} | {} | {} | {} | {:.2} |",
+            r.case,
+            r.omega,
+            r.n,
+            r.sigma_eps,
+            r.theta,
+            r.precision,
+            r.iterations,
+            r.converged,
+            r.seconds
+        );
     }
     let _ = writeln!(
         s,
@@ -202,8 +309,15 @@ fn report(args: &Args, fig5: &[point_source::RunRow], lim: &[point_source::RunRo
     );
     let bench = workspace_root().join("results/bench/diffusion_cpu.csv");
     if let Ok(csv) = std::fs::read_to_string(&bench) {
-        let _ = writeln!(s, "\n## Benchmark: one red-black iteration vs memory bandwidth (`bench/`, from `cargo bench -p benches`)\n");
-        let _ = writeln!(s, "Not regenerated by `figures`; the CSV below is the last committed bench run.\n\n```\n{}```", csv);
+        let _ = writeln!(
+            s,
+            "\n## Benchmark: one red-black iteration vs memory bandwidth (`bench/`, from `cargo bench -p benches`)\n"
+        );
+        let _ = writeln!(
+            s,
+            "Not regenerated by `figures`; the CSV below is the last committed bench run.\n\n```\n{}```",
+            csv
+        );
     }
     s
 }

@@ -67,7 +67,11 @@ impl<T: Real> CpuFld<T> {
     /// Validates the inputs and builds the packed state with the initial values of
     /// Algorithm 1: φ = ε j̄ Δl, D = ε Δl (CDA: D = 1/(3σ) right away, it never changes),
     /// boundary layer from `boundary`.
-    pub fn new(medium: &Medium<T>, boundary: &Boundary<T>, config: &FldConfig) -> Result<Self, SolverError> {
+    pub fn new(
+        medium: &Medium<T>,
+        boundary: &Boundary<T>,
+        config: &FldConfig,
+    ) -> Result<Self, SolverError> {
         let t0 = Instant::now();
         medium.validate()?;
         config.validate()?;
@@ -75,10 +79,19 @@ impl<T: Real> CpuFld<T> {
         let [nx, ny, nz] = grid.n;
         if let Boundary::Values(v) = boundary {
             if v.len() != grid.len() {
-                return Err(SolverError::FieldSize { field: "boundary", expected: grid.len(), got: v.len() });
+                return Err(SolverError::FieldSize {
+                    field: "boundary",
+                    expected: grid.len(),
+                    got: v.len(),
+                });
             }
             if let Some(index) = v.iter().position(|x| !(x.f().is_finite() && x.f() >= 0.0)) {
-                return Err(SolverError::FieldValue { field: "boundary", index, value: v[index].f(), range: "[0, ∞)" });
+                return Err(SolverError::FieldValue {
+                    field: "boundary",
+                    index,
+                    value: v[index].f(),
+                    range: "[0, ∞)",
+                });
             }
         }
         let dl = grid.dl;
@@ -203,7 +216,11 @@ impl<T: Real> CpuFld<T> {
     /// is read or written (medium 3 fields + own φ, D read and written + other colour φ, D
     /// read), i.e. 9 values per voxel per iteration for FLD and 7 for CDA (D is constant).
     pub fn bytes_per_iteration(&self) -> usize {
-        let per_voxel = if self.config.limiter.is_constant() { 7 } else { 9 };
+        let per_voxel = if self.config.limiter.is_constant() {
+            7
+        } else {
+            9
+        };
         per_voxel * self.grid.len() * std::mem::size_of::<T>()
     }
 
@@ -301,7 +318,9 @@ impl<T: Real> CpuFld<T> {
         let mut updates = Vec::new();
         let mut visit = |i: usize, j: usize, k: usize| {
             let diff = |lo: [usize; 3], hi: [usize; 3], steps: usize| {
-                (at(&self.phi, hi[0], hi[1], hi[2]) - at(&self.phi, lo[0], lo[1], lo[2])) * p.inv_2dl * T::c(2.0 / steps as f64)
+                (at(&self.phi, hi[0], hi[1], hi[2]) - at(&self.phi, lo[0], lo[1], lo[2]))
+                    * p.inv_2dl
+                    * T::c(2.0 / steps as f64)
             };
             let axis = |x: usize, n: usize| (x.saturating_sub(1), (x + 1).min(n - 1));
             let (xl, xr) = axis(i, nx);
@@ -314,7 +333,11 @@ impl<T: Real> CpuFld<T> {
             let (c, q) = packed_index(&g, h, i, j, k);
             let s = self.sig[c][q];
             let r = gnorm.max(p.floor) / (s * self.phi[c][q]).max(p.floor);
-            updates.push((c, q, p.theta * (lim.eval(r) / s) + p.one_minus_theta * self.d[c][q]));
+            updates.push((
+                c,
+                q,
+                p.theta * (lim.eval(r) / s) + p.one_minus_theta * self.d[c][q],
+            ));
         };
         for k in 0..nz {
             for j in 0..ny {
@@ -339,8 +362,12 @@ impl<T: Real> CpuFld<T> {
             FluxLimiter::Sum => self.pass_with::<true, _>(c, |r| FluxLimiter::Sum.eval(r)),
             FluxLimiter::Max => self.pass_with::<true, _>(c, |r| FluxLimiter::Max.eval(r)),
             FluxLimiter::Kershaw => self.pass_with::<true, _>(c, |r| FluxLimiter::Kershaw.eval(r)),
-            FluxLimiter::Larsen(n) => self.pass_with::<true, _>(c, move |r| FluxLimiter::Larsen(n).eval(r)),
-            FluxLimiter::LevermorePomraning => self.pass_with::<true, _>(c, super::limiter::levermore_pomraning),
+            FluxLimiter::Larsen(n) => {
+                self.pass_with::<true, _>(c, move |r| FluxLimiter::Larsen(n).eval(r))
+            }
+            FluxLimiter::LevermorePomraning => {
+                self.pass_with::<true, _>(c, super::limiter::levermore_pomraning)
+            }
         }
     }
 
@@ -350,10 +377,21 @@ impl<T: Real> CpuFld<T> {
         let slab = ny * h;
         let p = self.params;
         let margin = self.config.residual_margin;
-        let (lo, hi) = (1 + margin, [nx - 2 - margin.min(nx - 2), ny - 2 - margin.min(ny - 2), nz - 2 - margin.min(nz - 2)]);
+        let (lo, hi) = (
+            1 + margin,
+            [
+                nx - 2 - margin.min(nx - 2),
+                ny - 2 - margin.min(ny - 2),
+                nz - 2 - margin.min(nz - 2),
+            ],
+        );
         let [phi0, phi1] = &mut self.phi;
         let [d0, d1] = &mut self.d;
-        let (phi_c, phi_o, d_c, d_o) = if c == 0 { (phi0, &*phi1, d0, &*d1) } else { (phi1, &*phi0, d1, &*d0) };
+        let (phi_c, phi_o, d_c, d_o) = if c == 0 {
+            (phi0, &*phi1, d0, &*d1)
+        } else {
+            (phi1, &*phi0, d1, &*d0)
+        };
         let (sig, absorb, src) = (&self.sig[c], &self.absorb[c], &self.src[c]);
         let limiter = &limiter;
         let partial: Vec<f64> = phi_c
@@ -456,12 +494,29 @@ fn update_row<T: Real, const FLD: bool, L: Fn(T) -> T>(
     }
     let (m0, len) = (ms.start, ms.len());
     let (xl, xr) = (m0 + s - 1, m0 + s);
-    let (pxl, pxr, pym, pyp, pzm, pzp) = (cut(po.x, xl, len), cut(po.x, xr, len), cut(po.ym, m0, len), cut(po.yp, m0, len), cut(po.zm, m0, len), cut(po.zp, m0, len));
-    let (dxl, dxr, dym, dyp, dzm, dzp) = (cut(dn.x, xl, len), cut(dn.x, xr, len), cut(dn.ym, m0, len), cut(dn.yp, m0, len), cut(dn.zm, m0, len), cut(dn.zp, m0, len));
+    let (pxl, pxr, pym, pyp, pzm, pzp) = (
+        cut(po.x, xl, len),
+        cut(po.x, xr, len),
+        cut(po.ym, m0, len),
+        cut(po.yp, m0, len),
+        cut(po.zm, m0, len),
+        cut(po.zp, m0, len),
+    );
+    let (dxl, dxr, dym, dyp, dzm, dzp) = (
+        cut(dn.x, xl, len),
+        cut(dn.x, xr, len),
+        cut(dn.ym, m0, len),
+        cut(dn.yp, m0, len),
+        cut(dn.zm, m0, len),
+        cut(dn.zp, m0, len),
+    );
     let (sig, absorb, src) = (cut(sig, m0, len), cut(absorb, m0, len), cut(src, m0, len));
     let phi = &mut phi[m0..m0 + len];
     let d = &mut d[m0..m0 + len];
-    let (c_lo, c_hi) = (counted.start.saturating_sub(m0), counted.end.saturating_sub(m0));
+    let (c_lo, c_hi) = (
+        counted.start.saturating_sub(m0),
+        counted.end.saturating_sub(m0),
+    );
     let scratch = &mut scratch[..len];
     for q in 0..len {
         let phi_p = phi[q];
@@ -482,13 +537,22 @@ fn update_row<T: Real, const FLD: bool, L: Fn(T) -> T>(
         };
         // FLD Eq 32 with D_ps = (D_p + D_s)/2.
         let sum_phi = ns[0] + ns[1] + ns[2] + ns[3] + ns[4] + ns[5];
-        let sum_dphi = ds[0] * ns[0] + ds[1] * ns[1] + ds[2] * ns[2] + ds[3] * ns[3] + ds[4] * ns[4] + ds[5] * ns[5];
+        let sum_dphi = ds[0] * ns[0]
+            + ds[1] * ns[1]
+            + ds[2] * ns[2]
+            + ds[3] * ns[3]
+            + ds[4] * ns[4]
+            + ds[5] * ns[5];
         let sum_d = ds[0] + ds[1] + ds[2] + ds[3] + ds[4] + ds[5];
         let num = src[q] + half * (d_p * sum_phi + sum_dphi);
         let den = absorb[q] + half * (six * d_p + sum_d);
         // FLD Eq 37, before the update (see the module docs of `fld`).
         let res = (num - phi_p * den) * p.inv_dl2;
-        let w = if q >= c_lo && q < c_hi { T::one() } else { T::zero() };
+        let w = if q >= c_lo && q < c_hi {
+            T::one()
+        } else {
+            T::zero()
+        };
         scratch[q] = w * res * res;
         // FLD Eq 36, projected onto φ ≥ 0 (NaN passes through unchanged).
         let new = p.omega * (num / den) + p.one_minus_omega * phi_p;

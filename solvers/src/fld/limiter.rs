@@ -53,7 +53,11 @@ impl FluxLimiter {
     pub fn validate(&self) -> Result<(), SolverError> {
         match *self {
             FluxLimiter::Larsen(n) if !(n.is_finite() && n > 0.0) => {
-                Err(SolverError::BadParameter { name: "larsen n", value: n, reason: "must be finite and > 0" })
+                Err(SolverError::BadParameter {
+                    name: "larsen n",
+                    value: n,
+                    reason: "must be finite and > 0",
+                })
             }
             _ => Ok(()),
         }
@@ -148,7 +152,10 @@ impl FromStr for FluxLimiter {
             "larsen" => FluxLimiter::Larsen(2.0),
             _ => match t.strip_prefix("larsen") {
                 Some(n) => {
-                    let n: f64 = n.trim_start_matches(['-', '_']).parse().map_err(|_| SolverError::UnknownLimiter(s.to_string()))?;
+                    let n: f64 = n
+                        .trim_start_matches(['-', '_'])
+                        .parse()
+                        .map_err(|_| SolverError::UnknownLimiter(s.to_string()))?;
                     FluxLimiter::Larsen(n)
                 }
                 None => return Err(SolverError::UnknownLimiter(s.to_string())),
@@ -168,7 +175,8 @@ mod tests {
     fn lp_reference(r: f64) -> f64 {
         if r < 0.1 {
             let x2 = r * r;
-            1.0 / 3.0 - x2 / 45.0 + 2.0 * x2 * x2 / 945.0 - x2 * x2 * x2 / 4725.0 + 2.0 * x2.powi(4) / 93555.0
+            1.0 / 3.0 - x2 / 45.0 + 2.0 * x2 * x2 / 945.0 - x2 * x2 * x2 / 4725.0
+                + 2.0 * x2.powi(4) / 93555.0
         } else {
             (1.0 / r.tanh() - 1.0 / r) / r
         }
@@ -187,13 +195,20 @@ mod tests {
     #[test]
     fn limits_of_eq_19_hold() {
         for lim in LIMITERS {
-            assert!((lim.eval(0.0f64) - 1.0 / 3.0).abs() < 1e-15, "{lim}: F(0) = {}", lim.eval(0.0f64));
+            assert!(
+                (lim.eval(0.0f64) - 1.0 / 3.0).abs() < 1e-15,
+                "{lim}: F(0) = {}",
+                lim.eval(0.0f64)
+            );
             assert!((lim.eval(0.0f32) - 1.0 / 3.0).abs() < 1e-7, "{lim}: F32(0)");
             let r = 1e6f64;
             let rf = r * lim.eval(r);
             assert!((rf - 1.0).abs() < 1e-5, "{lim}: R·F(R) at R = 1e6 is {rf}");
             let rf32 = 1e6f32 * lim.eval(1e6f32);
-            assert!((rf32 - 1.0).abs() < 1e-5, "{lim}: f32 R·F(R) at R = 1e6 is {rf32}");
+            assert!(
+                (rf32 - 1.0).abs() < 1e-5,
+                "{lim}: f32 R·F(R) at R = 1e6 is {rf32}"
+            );
         }
     }
 
@@ -214,7 +229,10 @@ mod tests {
         for lim in FluxLimiter::ALL {
             assert_eq!(lim.to_string().parse::<FluxLimiter>().unwrap(), lim);
         }
-        assert_eq!("Larsen-3".parse::<FluxLimiter>().unwrap(), FluxLimiter::Larsen(3.0));
+        assert_eq!(
+            "Larsen-3".parse::<FluxLimiter>().unwrap(),
+            FluxLimiter::Larsen(3.0)
+        );
         assert!("larsen0".parse::<FluxLimiter>().is_err());
         assert!("foo".parse::<FluxLimiter>().is_err());
     }

@@ -113,12 +113,18 @@ impl Default for FldConfig {
 impl FldConfig {
     /// CDA with otherwise default settings.
     pub fn cda() -> Self {
-        Self { limiter: FluxLimiter::Cda, ..Self::default() }
+        Self {
+            limiter: FluxLimiter::Cda,
+            ..Self::default()
+        }
     }
 
     /// FLD with the given limiter.
     pub fn fld(limiter: FluxLimiter) -> Self {
-        Self { limiter, ..Self::default() }
+        Self {
+            limiter,
+            ..Self::default()
+        }
     }
 
     /// Builder: SOR factor.
@@ -148,7 +154,13 @@ impl FldConfig {
     /// Checks every parameter.
     pub fn validate(&self) -> Result<(), SolverError> {
         self.limiter.validate()?;
-        let bad = |name, value, reason| Err(SolverError::BadParameter { name, value, reason });
+        let bad = |name, value, reason| {
+            Err(SolverError::BadParameter {
+                name,
+                value,
+                reason,
+            })
+        };
         if !(self.omega > 0.0 && self.omega < 2.0) {
             return bad("omega", self.omega, "SOR needs 0 < ω < 2");
         }

@@ -17,7 +17,14 @@ fn naive(medium: &Medium<f64>, cfg: &FldConfig, iters: usize) -> (Vec<f64>, Vec<
     let floor = eps * jbar;
     let sig: Vec<f64> = medium.sigma_t.iter().map(|s| s.max(se)).collect();
     let mut phi = vec![eps * jbar * dl; g.len()];
-    let mut d = vec![if cfg.limiter.is_constant() { 0.0 } else { eps * dl }; g.len()];
+    let mut d = vec![
+        if cfg.limiter.is_constant() {
+            0.0
+        } else {
+            eps * dl
+        };
+        g.len()
+    ];
     if cfg.limiter.is_constant() {
         for (dv, s) in d.iter_mut().zip(&sig) {
             *dv = 1.0 / (3.0 * s);
@@ -45,7 +52,10 @@ fn naive(medium: &Medium<f64>, cfg: &FldConfig, iters: usize) -> (Vec<f64>, Vec<
                 for j in 0..ny {
                     for i in 0..nx {
                         if g.is_boundary(i, j, k) {
-                            upd.push((id(i, j, k), th * knudsen_d(&phi, i, j, k) + (1.0 - th) * d[id(i, j, k)]));
+                            upd.push((
+                                id(i, j, k),
+                                th * knudsen_d(&phi, i, j, k) + (1.0 - th) * d[id(i, j, k)],
+                            ));
                         }
                     }
                 }
@@ -67,8 +77,18 @@ fn naive(medium: &Medium<f64>, cfg: &FldConfig, iters: usize) -> (Vec<f64>, Vec<
                         if !cfg.limiter.is_constant() {
                             d[p] = th * knudsen_d(&phi, i, j, k) + (1.0 - th) * d[p];
                         }
-                        let nb = [id(i - 1, j, k), id(i + 1, j, k), id(i, j - 1, k), id(i, j + 1, k), id(i, j, k - 1), id(i, j, k + 1)];
-                        let (mut num, mut den) = (medium.emission[p] * dl * dl, (1.0 - medium.albedo[p]) * sig[p] * dl * dl);
+                        let nb = [
+                            id(i - 1, j, k),
+                            id(i + 1, j, k),
+                            id(i, j - 1, k),
+                            id(i, j + 1, k),
+                            id(i, j, k - 1),
+                            id(i, j, k + 1),
+                        ];
+                        let (mut num, mut den) = (
+                            medium.emission[p] * dl * dl,
+                            (1.0 - medium.albedo[p]) * sig[p] * dl * dl,
+                        );
                         for s in nb {
                             let dps = 0.5 * (d[p] + d[s]);
                             num += dps * phi[s];
@@ -76,7 +96,11 @@ fn naive(medium: &Medium<f64>, cfg: &FldConfig, iters: usize) -> (Vec<f64>, Vec<
                         }
                         let res = (num - phi[p] * den) / (dl * dl);
                         let m = cfg.residual_margin;
-                        if [i, j, k].iter().zip(g.n).all(|(&x, n)| x > m && x + 1 + m < n) {
+                        if [i, j, k]
+                            .iter()
+                            .zip(g.n)
+                            .all(|(&x, n)| x > m && x + 1 + m < n)
+                        {
                             sumsq += res * res;
                             count += 1;
                         }
@@ -94,7 +118,10 @@ fn assert_close(a: &[f64], b: &[f64], rel: f64, what: &str) {
     assert_eq!(a.len(), b.len());
     let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     for (idx, (x, y)) in a.iter().zip(b).enumerate() {
-        assert!((x - y).abs() <= rel * (y.abs() + 1e-6 * scale), "{what}[{idx}]: {x} vs {y} (rel tol {rel})");
+        assert!(
+            (x - y).abs() <= rel * (y.abs() + 1e-6 * scale),
+            "{what}[{idx}]: {x} vs {y} (rel tol {rel})"
+        );
     }
 }
 
@@ -103,16 +130,42 @@ fn packed_red_black_matches_naive_algorithm_1() {
     // Odd and even extents so both packed-row parities and the padding slot are exercised.
     for dims in [[9, 8, 7], [6, 7, 8], [5, 5, 5]] {
         let medium = scenes::random_heterogeneous::<f64>(dims, 42, 0.2).unwrap();
-        for limiter in [FluxLimiter::Cda, FluxLimiter::LevermorePomraning, FluxLimiter::Larsen(2.0), FluxLimiter::Kershaw] {
+        for limiter in [
+            FluxLimiter::Cda,
+            FluxLimiter::LevermorePomraning,
+            FluxLimiter::Larsen(2.0),
+            FluxLimiter::Kershaw,
+        ] {
             for (omega, d_relaxation) in [(1.0, 1.0), (1.7, 0.5)] {
-                let cfg = FldConfig { limiter, omega, d_relaxation, residual_margin: 1, ..FldConfig::default() };
+                let cfg = FldConfig {
+                    limiter,
+                    omega,
+                    d_relaxation,
+                    residual_margin: 1,
+                    ..FldConfig::default()
+                };
                 let mut s = CpuFld::new(&medium, &Boundary::Zero, &cfg).unwrap();
                 for it in 1..=6 {
                     s.iterate();
                     let (phi, d, hist) = naive(&medium, &cfg, it);
-                    assert_close(&s.phi(), &phi, 1e-11, &format!("{dims:?} {limiter} ω={omega} it={it} φ"));
-                    assert_close(&s.diffusion_coefficient(), &d, 1e-11, &format!("{dims:?} {limiter} D"));
-                    assert!((s.residuals()[it - 1] / hist[it - 1] - 1.0).abs() < 1e-9, "residual {} vs {}", s.residuals()[it - 1], hist[it - 1]);
+                    assert_close(
+                        &s.phi(),
+                        &phi,
+                        1e-11,
+                        &format!("{dims:?} {limiter} ω={omega} it={it} φ"),
+                    );
+                    assert_close(
+                        &s.diffusion_coefficient(),
+                        &d,
+                        1e-11,
+                        &format!("{dims:?} {limiter} D"),
+                    );
+                    assert!(
+                        (s.residuals()[it - 1] / hist[it - 1] - 1.0).abs() < 1e-9,
+                        "residual {} vs {}",
+                        s.residuals()[it - 1],
+                        hist[it - 1]
+                    );
                 }
             }
         }
@@ -123,7 +176,12 @@ fn packed_red_black_matches_naive_algorithm_1() {
 fn a_red_pass_changes_only_red_interior_voxels_and_black_sees_them() {
     let medium = scenes::random_heterogeneous::<f64>([8, 9, 10], 3, 0.0).unwrap();
     let g = medium.grid;
-    let mut s = CpuFld::new(&medium, &Boundary::Zero, &FldConfig::fld(FluxLimiter::LevermorePomraning)).unwrap();
+    let mut s = CpuFld::new(
+        &medium,
+        &Boundary::Zero,
+        &FldConfig::fld(FluxLimiter::LevermorePomraning),
+    )
+    .unwrap();
     let before = s.phi();
     s.pass(0);
     let after_red = s.phi();
@@ -134,7 +192,10 @@ fn a_red_pass_changes_only_red_interior_voxels_and_black_sees_them() {
         if red_interior {
             changed_red += (after_red[idx] != before[idx]) as usize;
         } else {
-            assert_eq!(after_red[idx], before[idx], "voxel {i},{j},{k} changed in the red pass");
+            assert_eq!(
+                after_red[idx], before[idx],
+                "voxel {i},{j},{k} changed in the red pass"
+            );
         }
     }
     assert!(changed_red > 0);
@@ -143,14 +204,24 @@ fn a_red_pass_changes_only_red_interior_voxels_and_black_sees_them() {
     let mut gs = s.clone();
     gs.pass(1);
     let mut jacobi = s.clone();
-    jacobi.phi[0] = CpuFld::new(&medium, &Boundary::Zero, &FldConfig::fld(FluxLimiter::LevermorePomraning)).unwrap().phi[0].clone();
+    jacobi.phi[0] = CpuFld::new(
+        &medium,
+        &Boundary::Zero,
+        &FldConfig::fld(FluxLimiter::LevermorePomraning),
+    )
+    .unwrap()
+    .phi[0]
+        .clone();
     jacobi.pass(1);
     let (a, b) = (gs.phi(), jacobi.phi());
     let black_diff = (0..g.len()).filter(|&idx| {
         let [i, j, k] = g.coords(idx);
         (i + j + k) % 2 == 1 && a[idx] != b[idx]
     });
-    assert!(black_diff.count() > 0, "black pass ignores the red update (Jacobi behaviour)");
+    assert!(
+        black_diff.count() > 0,
+        "black pass ignores the red update (Jacobi behaviour)"
+    );
 }
 
 /// CDA's operator is symmetric (D_ps = D_sp), so its Green's function is reciprocal:
@@ -165,7 +236,10 @@ fn cda_green_function_is_reciprocal_in_heterogeneous_medium() {
     let solve = |src: usize| {
         let mut m = medium.clone();
         m.emission[src] = 1.0;
-        let cfg = FldConfig::cda().with_omega(1.8).with_tolerance(1e-13).with_max_iterations(200_000);
+        let cfg = FldConfig::cda()
+            .with_omega(1.8)
+            .with_tolerance(1e-13)
+            .with_max_iterations(200_000);
         let sol = CpuFld::new(&m, &Boundary::Zero, &cfg).unwrap().solve();
         assert!(sol.converged());
         sol.phi
@@ -193,14 +267,20 @@ fn fld_solution_is_mirror_symmetric() {
                 m.emission[idx] = base.emission[mirror];
             }
         }
-        let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning).with_omega(1.5).with_tolerance(1e-11).with_max_iterations(20_000);
+        let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning)
+            .with_omega(1.5)
+            .with_tolerance(1e-11)
+            .with_max_iterations(20_000);
         let sol = CpuFld::new(&m, &Boundary::Zero, &cfg).unwrap().solve();
         assert!(sol.converged(), "{:?} after {}", sol.status, sol.iterations);
         let max = sol.phi.iter().fold(0.0f64, |a, &b| a.max(b));
         for idx in 0..g.len() {
             let [i, j, k] = g.coords(idx);
             let (x, y) = (sol.phi[idx], sol.phi[g.index(nx - 1 - i, j, k)]);
-            assert!((x - y).abs() <= 1e-7 * max, "nx={nx}: φ({i},{j},{k}) = {x}, mirror {y}");
+            assert!(
+                (x - y).abs() <= 1e-7 * max,
+                "nx={nx}: φ({i},{j},{k}) = {x}, mirror {y}"
+            );
         }
     }
 }
@@ -216,13 +296,23 @@ fn f32_is_finite_and_nonnegative_on_hard_media() {
         let medium = scenes::random_heterogeneous::<f32>([17, 16, 15], seed, vac).unwrap();
         for limiter in FluxLimiter::ALL {
             for omega in [1.0, 1.7, 1.9] {
-                let cfg = FldConfig { limiter, omega, ..FldConfig::default() };
+                let cfg = FldConfig {
+                    limiter,
+                    omega,
+                    ..FldConfig::default()
+                };
                 let mut s = CpuFld::new(&medium, &Boundary::Zero, &cfg).unwrap();
                 for it in 0..cap {
                     let r = s.iterate();
-                    assert!(r.is_finite(), "seed {seed} {limiter} ω={omega}: residual {r} at {it}");
+                    assert!(
+                        r.is_finite(),
+                        "seed {seed} {limiter} ω={omega}: residual {r} at {it}"
+                    );
                     if it % 500 == 0 {
-                        assert!(s.phi().iter().all(|x| x.is_finite() && *x >= 0.0), "seed {seed} {limiter} ω={omega} it {it}");
+                        assert!(
+                            s.phi().iter().all(|x| x.is_finite() && *x >= 0.0),
+                            "seed {seed} {limiter} ω={omega} it {it}"
+                        );
                     }
                     if r < s.tolerance() {
                         break;
@@ -230,10 +320,21 @@ fn f32_is_finite_and_nonnegative_on_hard_media() {
                 }
                 let last = *s.residuals().last().unwrap();
                 if omega <= 1.7 && vac <= 0.5 {
-                    assert!(last < s.tolerance(), "seed {seed} {limiter} ω={omega}: not converged, R̄/j̄ = {last}");
+                    assert!(
+                        last < s.tolerance(),
+                        "seed {seed} {limiter} ω={omega}: not converged, R̄/j̄ = {last}"
+                    );
                 }
-                assert!(s.phi().iter().all(|x| x.is_finite() && *x >= 0.0), "seed {seed} {limiter} ω={omega}");
-                assert!(s.diffusion_coefficient().iter().all(|x| x.is_finite() && *x > 0.0), "seed {seed} {limiter}: D");
+                assert!(
+                    s.phi().iter().all(|x| x.is_finite() && *x >= 0.0),
+                    "seed {seed} {limiter} ω={omega}"
+                );
+                assert!(
+                    s.diffusion_coefficient()
+                        .iter()
+                        .all(|x| x.is_finite() && *x > 0.0),
+                    "seed {seed} {limiter}: D"
+                );
             }
         }
     }
@@ -246,8 +347,17 @@ fn f32_is_finite_and_nonnegative_on_hard_media() {
 fn fld_is_homogeneous_in_the_source() {
     fn check<T: Real>(tol: f64, ks: std::ops::RangeInclusive<i32>) {
         let base = scenes::vacuum_cloud::<T>(21, 3).unwrap();
-        let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning).with_omega(1.7).with_tolerance(0.0).with_max_iterations(150);
-        let phi_ref: Vec<f64> = CpuFld::new(&base, &Boundary::Zero, &cfg).unwrap().solve().phi.iter().map(|x| x.f()).collect();
+        let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning)
+            .with_omega(1.7)
+            .with_tolerance(0.0)
+            .with_max_iterations(150);
+        let phi_ref: Vec<f64> = CpuFld::new(&base, &Boundary::Zero, &cfg)
+            .unwrap()
+            .solve()
+            .phi
+            .iter()
+            .map(|x| x.f())
+            .collect();
         let max = phi_ref.iter().fold(0.0f64, |a, &b| a.max(b));
         for k in ks {
             let scale = 10f64.powi(k);
@@ -280,7 +390,9 @@ fn f32_tiny_sources_stay_finite() {
 #[test]
 fn no_source_and_zero_boundary_is_exactly_zero() {
     let m = Medium::<f64>::homogeneous(Grid::cube(7, 1.0).unwrap(), 3.0, 0.5).unwrap();
-    let sol = CpuFld::new(&m, &Boundary::Zero, &FldConfig::default()).unwrap().solve();
+    let sol = CpuFld::new(&m, &Boundary::Zero, &FldConfig::default())
+        .unwrap()
+        .solve();
     assert!(sol.converged());
     assert_eq!(sol.iterations, 0);
     assert!(sol.phi.iter().all(|&x| x == 0.0 || x == f64::MIN_POSITIVE));
@@ -290,16 +402,42 @@ fn no_source_and_zero_boundary_is_exactly_zero() {
 fn bad_inputs_are_typed_errors() {
     let g = Grid::cube(7, 1.0).unwrap();
     let m = Medium::<f64>::homogeneous(g, 3.0, 0.5).unwrap();
-    let cfg = FldConfig { omega: 2.0, ..FldConfig::default() };
-    assert!(matches!(CpuFld::new(&m, &Boundary::Zero, &cfg), Err(SolverError::BadParameter { name: "omega", .. })));
+    let cfg = FldConfig {
+        omega: 2.0,
+        ..FldConfig::default()
+    };
+    assert!(matches!(
+        CpuFld::new(&m, &Boundary::Zero, &cfg),
+        Err(SolverError::BadParameter { name: "omega", .. })
+    ));
     let mut bad = m.clone();
     bad.albedo[5] = 1.5;
-    assert!(matches!(CpuFld::new(&bad, &Boundary::Zero, &FldConfig::default()), Err(SolverError::FieldValue { field: "albedo", index: 5, .. })));
+    assert!(matches!(
+        CpuFld::new(&bad, &Boundary::Zero, &FldConfig::default()),
+        Err(SolverError::FieldValue {
+            field: "albedo",
+            index: 5,
+            ..
+        })
+    ));
     bad = m.clone();
     bad.sigma_t.pop();
-    assert!(matches!(CpuFld::new(&bad, &Boundary::Zero, &FldConfig::default()), Err(SolverError::FieldSize { field: "sigma_t", .. })));
     assert!(matches!(
-        CpuFld::new(&m, &Boundary::Values(vec![f64::NAN; g.len()]), &FldConfig::default()),
-        Err(SolverError::FieldValue { field: "boundary", .. })
+        CpuFld::new(&bad, &Boundary::Zero, &FldConfig::default()),
+        Err(SolverError::FieldSize {
+            field: "sigma_t",
+            ..
+        })
+    ));
+    assert!(matches!(
+        CpuFld::new(
+            &m,
+            &Boundary::Values(vec![f64::NAN; g.len()]),
+            &FldConfig::default()
+        ),
+        Err(SolverError::FieldValue {
+            field: "boundary",
+            ..
+        })
     ));
 }
