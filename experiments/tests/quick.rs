@@ -1,6 +1,9 @@
 //! The experiments' CSV interfaces (columns named in the issues) and their headline claims,
 //! on CI-sized runs.
 
+// Test helpers unwrap: a failed setup should fail the test loudly.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use clap::Parser;
 use experiments::{convergence, point_source};
 use std::path::Path;

@@ -1,5 +1,8 @@
 //! Analytic agreement of the diffusion solver (issue "Diffusion core", acceptance 1, 2, 4, 5).
 
+// Test helpers unwrap: a failed setup should fail the test loudly.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use reference::point_source::{PointSource, Solution};
 use solvers::fld::{Boundary, CpuFld, FldConfig, FluxLimiter};
 use solvers::{Grid, Medium, Real, scenes};

@@ -184,7 +184,9 @@ fn report(
                     if r.converged { "" } else { " (not converged)" }
                 ))
                 .unwrap_or_default(),
-            lp.as_ref().map(|r| format!("{:.1}", r.seconds)).unwrap_or_default()
+            lp.as_ref()
+                .map(|r| format!("{:.1}", r.seconds))
+                .unwrap_or_default()
         );
     }
 
