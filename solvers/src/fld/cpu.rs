@@ -52,7 +52,8 @@ pub struct CpuFld<T> {
     d: [Vec<T>; 2],
     params: Params<T>,
     tolerance: f64,
-    /// j̄ (or its substitute when there is no emission, see the module docs).
+    /// j̄ (or its substitute when there is no emission, see the module docs); the solve runs
+    /// on fields divided by it.
     j_ref: f64,
     /// Interior voxels counted in the RMS residual.
     residual_count: usize,
@@ -109,9 +110,17 @@ impl<T: Real> CpuFld<T> {
         };
         let j_ref = if jbar > 0.0 { jbar } else { boundary_max / dl };
         let trivial = j_ref == 0.0;
+        // The solve runs on j/j_ref (see the `fld` module docs, "Normalisation"), so inside
+        // it j̄ = 1 and the floors of Eq 35 are ε itself.
+        let scale = if trivial { 1.0 } else { j_ref };
         let eps = config.epsilon.unwrap_or(T::DEFAULT_EPSILON);
-        let floor = T::c(eps * j_ref).max(T::min_positive_value());
-        let phi0 = T::c(eps * j_ref * dl).max(T::min_positive_value());
+        let floor = T::c(eps).max(T::min_positive_value());
+        // No source and a zero boundary: the exact answer φ = 0 is the initial value.
+        let phi0 = if trivial {
+            T::zero()
+        } else {
+            T::c(eps * dl).max(T::min_positive_value())
+        };
         let d0 = T::c(eps * dl);
 
         let h = nx.div_ceil(2);
@@ -136,12 +145,12 @@ impl<T: Real> CpuFld<T> {
                     };
                     sig[c][p] = T::c(ks);
                     absorb[c][p] = T::c((1.0 - a) * st * dl * dl);
-                    src[c][p] = T::c(medium.emission[n].f() * dl * dl);
+                    src[c][p] = T::c(medium.emission[n].f() / scale * dl * dl);
                     if cda {
                         d[c][p] = third / T::c(ks);
                     }
                     if let (Boundary::Values(v), true) = (boundary, grid.is_boundary(i, j, k)) {
-                        phi[c][p] = v[n];
+                        phi[c][p] = T::c(v[n].f() / scale);
                     }
                 }
             }
@@ -235,7 +244,8 @@ impl<T: Real> CpuFld<T> {
             self.update_boundary_d();
         }
         let sumsq = self.pass(0) + self.pass(1);
-        let r = (sumsq / self.residual_count as f64).sqrt() / self.j_ref;
+        // Normalised units: j̄ = 1 inside the solve.
+        let r = (sumsq / self.residual_count as f64).sqrt();
         self.iterations += 1;
         self.residuals.push(r);
         r
@@ -279,9 +289,13 @@ impl<T: Real> CpuFld<T> {
         }
     }
 
-    /// The current φ in natural layout (x fastest).
+    /// The current φ in natural layout (x fastest), in the caller's units.
     pub fn phi(&self) -> Vec<T> {
+        let scale = if self.trivial { 1.0 } else { self.j_ref };
         self.unpack(&self.phi)
+            .into_iter()
+            .map(|x| T::c(x.f() * scale))
+            .collect()
     }
 
     /// The current diffusion coefficient D in natural layout.

@@ -41,9 +41,13 @@
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
 //! * **ε in f32** is 10⁻¹⁰ instead of 10⁻²⁰ (see [`Real::DEFAULT_EPSILON`]).
-//! * **f32 floors.** ε j̄ is floored at the smallest positive normal number of the precision,
-//!   so it never underflows to 0 (which would make R = 0/0). In `f32` this breaks the
-//!   degree-1 homogeneity of FLD only for j̄ < ~10⁻¹⁸ (ε = 10⁻²⁰); see the homogeneity test.
+//! * **Normalisation.** The solve runs on j/j̄ and boundary values/j̄, and φ is multiplied
+//!   back by j̄ on output. CDA and FLD are degree-1 homogeneous in the source (R and F(R)
+//!   are scale-free, the floors of Eq 35 scale with j̄), so this changes nothing
+//!   mathematically; it keeps |∇φ|² and ε j̄ inside f32's range whatever the caller's units.
+//!   Without it, f32 homogeneity held only for source scales 10⁻¹⁶ … 10¹⁴ (measured on the
+//!   Fig 4 cloud; outside, |∇φ|² under- or overflowed and φ was wrong by O(1)). The
+//!   homogeneity test covers 10⁻³⁰ … 10³⁰ in both precisions.
 
 pub mod cpu;
 pub mod limiter;

@@ -342,7 +342,9 @@ fn f32_is_finite_and_nonnegative_on_hard_media() {
 
 /// FLD is degree-1 homogeneous in the source (R and F(R) are invariant under φ → λφ), and the
 /// ε floors scale with j̄, so scaling j by 10^k scales every iterate by 10^k. Checked after a
-/// fixed number of iterations, so the stopping rule cannot differ between the runs.
+/// fixed number of iterations, so the stopping rule cannot differ between the runs, for
+/// k = −30 … 30 — far outside the 10⁻¹⁶ … 10¹⁴ that f32 managed before the solve was
+/// normalised by j̄.
 #[test]
 fn fld_is_homogeneous_in_the_source() {
     fn check<T: Real>(tol: f64, ks: std::ops::RangeInclusive<i32>) {
@@ -359,7 +361,7 @@ fn fld_is_homogeneous_in_the_source() {
             .map(|x| x.f())
             .collect();
         let max = phi_ref.iter().fold(0.0f64, |a, &b| a.max(b));
-        for k in ks {
+        for k in ks.step_by(3) {
             let scale = 10f64.powi(k);
             let mut m = base.clone();
             m.emission.iter_mut().for_each(|e| *e = T::c(e.f() * scale));
@@ -372,19 +374,33 @@ fn fld_is_homogeneous_in_the_source() {
             }
         }
     }
-    check::<f64>(1e-5, -6..=6);
-    check::<f32>(1e-5, -6..=6);
+    check::<f64>(1e-5, -30..=30);
+    check::<f32>(1e-5, -30..=30);
 }
 
-/// Where the floors do break homogeneity: in f32, ε j̄ underflows below the smallest normal
-/// number for j̄ ≲ 10⁻¹⁸; the floor at `f32::MIN_POSITIVE` keeps φ finite and non-negative.
+/// A source of 10⁻³⁰ in f32 (where |∇φ|² of the raw field would be far below the smallest
+/// subnormal) gives the same φ/j̄ as a unit source, finite and non-negative.
 #[test]
-fn f32_tiny_sources_stay_finite() {
-    let mut m = scenes::vacuum_cloud::<f32>(15, 3).unwrap();
+fn f32_tiny_sources_stay_finite_and_accurate() {
+    let base = scenes::vacuum_cloud::<f32>(15, 3).unwrap();
+    let mut m = base.clone();
     m.emission.iter_mut().for_each(|e| *e *= 1e-30);
     let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning).with_max_iterations(200);
-    let sol = CpuFld::new(&m, &Boundary::Zero, &cfg).unwrap().solve();
-    assert!(sol.phi.iter().all(|x| x.is_finite() && *x >= 0.0));
+    let tiny = CpuFld::new(&m, &Boundary::Zero, &cfg).unwrap().solve().phi;
+    let unit = CpuFld::new(&base, &Boundary::Zero, &cfg)
+        .unwrap()
+        .solve()
+        .phi;
+    assert!(tiny.iter().all(|x| x.is_finite() && *x >= 0.0));
+    let max = unit.iter().fold(0.0f32, |a, &b| a.max(b));
+    for (a, b) in tiny.iter().zip(&unit) {
+        if *b > 1e-4 * max {
+            assert!(
+                ((*a as f64) / (1e-30 * *b as f64) - 1.0).abs() < 1e-4,
+                "{a} vs {b}·1e-30"
+            );
+        }
+    }
 }
 
 #[test]
@@ -395,7 +411,7 @@ fn no_source_and_zero_boundary_is_exactly_zero() {
         .solve();
     assert!(sol.converged());
     assert_eq!(sol.iterations, 0);
-    assert!(sol.phi.iter().all(|&x| x == 0.0 || x == f64::MIN_POSITIVE));
+    assert!(sol.phi.iter().all(|&x| x == 0.0));
 }
 
 #[test]
