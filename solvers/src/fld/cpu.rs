@@ -422,20 +422,8 @@ impl<T: Real> CpuFld<T> {
                     let s = (c + j + k) & 1;
                     let row = j * h;
                     let g = (k * ny + j) * h;
-                    let rows = Rows {
-                        x: &phi_o[g..g + h],
-                        ym: &phi_o[g - h..g],
-                        yp: &phi_o[g + h..g + 2 * h],
-                        zm: &phi_o[g - slab..g - slab + h],
-                        zp: &phi_o[g + slab..g + slab + h],
-                    };
-                    let drows = Rows {
-                        x: &d_o[g..g + h],
-                        ym: &d_o[g - h..g],
-                        yp: &d_o[g + h..g + 2 * h],
-                        zm: &d_o[g - slab..g - slab + h],
-                        zp: &d_o[g + slab..g + slab + h],
-                    };
+                    let rows = Rows::around(phi_o, g, h, slab);
+                    let drows = Rows::around(d_o, g, h, slab);
                     let counted_row = (lo..=hi[1]).contains(&j) && (lo..=hi[2]).contains(&k);
                     // Interior i = 2m + s ∈ [1, nx − 2].
                     let m_lo = 1 - s;
@@ -480,6 +468,32 @@ struct Rows<'a, T> {
     zp: &'a [T],
 }
 
+impl<'a, T> Rows<'a, T> {
+    /// The rows around packed row start `g` of `f` (row length `h`, slab length `slab`).
+    fn around(f: &'a [T], g: usize, h: usize, slab: usize) -> Self {
+        Self {
+            x: &f[g..g + h],
+            ym: &f[g - h..g],
+            yp: &f[g + h..g + 2 * h],
+            zm: &f[g - slab..g - slab + h],
+            zp: &f[g + slab..g + slab + h],
+        }
+    }
+
+    /// The six neighbour runs of the `len` voxels starting at m0: x−, x+ (starting at `xl`,
+    /// `xr` in the same row), y−, y+, z−, z+, each exactly `len` long.
+    fn cut(&self, xl: usize, xr: usize, m0: usize, len: usize) -> [&'a [T]; 6] {
+        [
+            &self.x[xl..xl + len],
+            &self.x[xr..xr + len],
+            &self.ym[m0..m0 + len],
+            &self.yp[m0..m0 + len],
+            &self.zm[m0..m0 + len],
+            &self.zp[m0..m0 + len],
+        ]
+    }
+}
+
 /// Updates the voxels `ms` of one packed row; returns Σ residual² over `counted`.
 ///
 /// Every input is first cut to exactly `ms.len()` elements so the compiler can drop bounds
@@ -503,28 +517,15 @@ fn update_row<T: Real, const FLD: bool, L: Fn(T) -> T>(
 ) -> T {
     let half = T::c(0.5);
     let six = T::c(6.0);
-    fn cut<T>(v: &[T], off: usize, len: usize) -> &[T] {
-        &v[off..off + len]
-    }
     let (m0, len) = (ms.start, ms.len());
     let (xl, xr) = (m0 + s - 1, m0 + s);
-    let (pxl, pxr, pym, pyp, pzm, pzp) = (
-        cut(po.x, xl, len),
-        cut(po.x, xr, len),
-        cut(po.ym, m0, len),
-        cut(po.yp, m0, len),
-        cut(po.zm, m0, len),
-        cut(po.zp, m0, len),
+    let [pxl, pxr, pym, pyp, pzm, pzp] = po.cut(xl, xr, m0, len);
+    let [dxl, dxr, dym, dyp, dzm, dzp] = dn.cut(xl, xr, m0, len);
+    let (sig, absorb, src) = (
+        &sig[m0..m0 + len],
+        &absorb[m0..m0 + len],
+        &src[m0..m0 + len],
     );
-    let (dxl, dxr, dym, dyp, dzm, dzp) = (
-        cut(dn.x, xl, len),
-        cut(dn.x, xr, len),
-        cut(dn.ym, m0, len),
-        cut(dn.yp, m0, len),
-        cut(dn.zm, m0, len),
-        cut(dn.zp, m0, len),
-    );
-    let (sig, absorb, src) = (cut(sig, m0, len), cut(absorb, m0, len), cut(src, m0, len));
     let phi = &mut phi[m0..m0 + len];
     let d = &mut d[m0..m0 + len];
     let (c_lo, c_hi) = (
