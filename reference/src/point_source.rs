@@ -48,24 +48,12 @@ pub fn grosjean_knudsen(tau: f64, albedo: f64) -> f64 {
 }
 
 impl Solution {
-    /// Every solution, in plotting order.
-    pub const ALL: [Solution; 3] = [Solution::Grosjean, Solution::Cda, Solution::TransportLimit];
-
     /// Normalised fluence φ̃(τ).
     pub fn normalized(&self, tau: f64, albedo: f64) -> f64 {
         match self {
             Solution::Grosjean => grosjean(tau, albedo),
             Solution::Cda => cda(tau, albedo),
             Solution::TransportLimit => transport_limit(tau, albedo),
-        }
-    }
-
-    /// Short name for CSV columns.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Solution::Grosjean => "grosjean",
-            Solution::Cda => "cda",
-            Solution::TransportLimit => "transport_limit",
         }
     }
 }

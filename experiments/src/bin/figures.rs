@@ -35,48 +35,53 @@ fn main() -> Result<()> {
         no_progress: args.no_progress,
     };
     let t0 = Instant::now();
+
     let mut times = Vec::new();
-
-    eprintln!("[1/4] point_source_analytic (FLD Fig 3)");
-    let t = Instant::now();
-    point_source_analytic::run(
-        &point_source_analytic::Args::parse_from(["point_source_analytic"])
-            .with_common(common("point_source_analytic")),
+    timed(
+        &mut times,
+        "point_source_analytic",
+        "[1/4] FLD Fig 3".into(),
+        || {
+            let mut a = point_source_analytic::Args::parse_from(["point_source_analytic"]);
+            a.common = common("point_source_analytic");
+            point_source_analytic::run(&a)
+        },
     )?;
-    times.push(("point_source_analytic", t.elapsed().as_secs_f64()));
-
-    eprintln!(
-        "[2/4] point_source (FLD Fig 5: CDA and FLD-LP, {}³)",
-        if args.quick { 31 } else { 127 }
-    );
-    let t = Instant::now();
-    let mut ps = point_source::Args::parse_from(["point_source", "--limiter", "cda,lp"]);
-    ps.common = common("point_source");
-    let fig5 = point_source::run(&ps)?;
-    times.push(("point_source", t.elapsed().as_secs_f64()));
-
-    let n_lim = if args.quick { 21 } else { 63 };
-    eprintln!("[3/4] flux_limiters (every limiter, both Knudsen forms, {n_lim}³)");
-    let t = Instant::now();
-    let mut fl = point_source::Args::parse_from([
+    let n5 = if args.quick { 31 } else { 127 };
+    let fig5 = timed(
+        &mut times,
         "point_source",
-        "--limiter",
-        "all",
-        "--effective-albedo",
-        "--boundary",
-        "zero",
-    ]);
-    fl.n = Some(n_lim);
-    fl.common = common("flux_limiters");
-    let limiters = point_source::run(&fl)?;
-    times.push(("flux_limiters", t.elapsed().as_secs_f64()));
-
-    eprintln!("[4/4] convergence (FLD Fig 4)");
-    let t = Instant::now();
-    let mut cv = convergence::Args::parse_from(["convergence"]);
-    cv.common = common("convergence");
-    let conv = convergence::run(&cv)?;
-    times.push(("convergence", t.elapsed().as_secs_f64()));
+        format!("[2/4] FLD Fig 5: CDA and FLD-LP, {n5}³"),
+        || {
+            let mut a = point_source::Args::parse_from(["point_source", "--limiter", "cda,lp"]);
+            a.common = common("point_source");
+            point_source::run(&a)
+        },
+    )?;
+    let n_lim = if args.quick { 21 } else { 63 };
+    let limiters = timed(
+        &mut times,
+        "flux_limiters",
+        format!("[3/4] every limiter, both Knudsen forms, {n_lim}³"),
+        || {
+            let mut a = point_source::Args::parse_from([
+                "point_source",
+                "--limiter",
+                "all",
+                "--effective-albedo",
+                "--boundary",
+                "zero",
+            ]);
+            a.n = Some(n_lim);
+            a.common = common("flux_limiters");
+            point_source::run(&a)
+        },
+    )?;
+    let conv = timed(&mut times, "convergence", "[4/4] FLD Fig 4".into(), || {
+        let mut a = convergence::Args::parse_from(["convergence"]);
+        a.common = common("convergence");
+        convergence::run(&a)
+    })?;
 
     let total = t0.elapsed().as_secs_f64();
     let readme = report(&args, &fig5, &limiters, &conv, &times, total);
@@ -86,14 +91,26 @@ fn main() -> Result<()> {
     Ok(())
 }
 
-trait WithCommon {
-    fn with_common(self, c: CommonArgs) -> Self;
+/// Runs one experiment, printing `label` first and recording its wall time under `name`.
+fn timed<R>(
+    times: &mut Vec<(&'static str, f64)>,
+    name: &'static str,
+    label: String,
+    f: impl FnOnce() -> Result<R>,
+) -> Result<R> {
+    eprintln!("{label} ({name})");
+    let t = Instant::now();
+    let r = f()?;
+    times.push((name, t.elapsed().as_secs_f64()));
+    Ok(r)
 }
-impl WithCommon for point_source_analytic::Args {
-    fn with_common(mut self, c: CommonArgs) -> Self {
-        self.common = c;
-        self
-    }
+
+/// The distinct values of `it`, sorted.
+fn distinct<T: PartialOrd>(it: impl Iterator<Item = T>) -> Vec<T> {
+    let mut v: Vec<T> = it.collect();
+    v.sort_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
+    v.dedup();
+    v
 }
 
 fn report(
@@ -157,8 +174,7 @@ fn report(
             .find(|r| r.limiter == lim && r.boundary == b && r.knudsen == k && r.albedo == a)
             .cloned()
     };
-    let mut albedos: Vec<f64> = fig5.iter().map(|r| r.albedo).collect();
-    albedos.dedup();
+    let albedos = distinct(fig5.iter().map(|r| r.albedo));
     for &a in &albedos {
         let (ca, cz, lp) = (
             find(fig5, "cda", "analytic", "sigma_t", a),
@@ -200,10 +216,7 @@ fn report(
         "Relative L2 error against Grosjean over voxels with 0 < τ < 1, for every limiter of FLD Table 2, with the paper's Knudsen number \
          R = |∇φ|/(σt φ) and with Levermore–Pomraning's effective-albedo form R = |∇φ|/(α σt φ), D = F(R)/(α σt). Lower is better; **bold** is the best per albedo.\n"
     );
-    let mut limiters: Vec<String> = lim.iter().map(|r| r.limiter.clone()).collect();
-    limiters.dedup();
-    limiters.sort();
-    limiters.dedup();
+    let limiters = distinct(lim.iter().map(|r| r.limiter.clone()));
     let mut cols = Vec::new();
     for l in &limiters {
         cols.push((l.clone(), "sigma_t"));
@@ -228,10 +241,7 @@ fn report(
         let _ = write!(s, "---|");
     }
     let _ = writeln!(s);
-    let mut lim_albedos: Vec<f64> = lim.iter().map(|r| r.albedo).collect();
-    lim_albedos.dedup();
-    lim_albedos.sort_by(f64::total_cmp);
-    lim_albedos.dedup();
+    let lim_albedos = distinct(lim.iter().map(|r| r.albedo));
     for &a in &lim_albedos {
         let vals: Vec<Option<f64>> = cols
             .iter()

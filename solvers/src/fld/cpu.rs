@@ -325,14 +325,16 @@ impl<T: Real> CpuFld<T> {
         let h = self.h;
         let lim = self.config.limiter;
         let p = self.params;
-        let at = |f: &[Vec<T>; 2], i: usize, j: usize, k: usize| {
+        // Each boundary voxel reads φ (not updated here) and only its own D, so the
+        // update is written in place in any order.
+        let (phi, sig, d) = (&self.phi, &self.sig, &mut self.d);
+        let at = |i: usize, j: usize, k: usize| {
             let (c, q) = packed_index(&g, h, i, j, k);
-            f[c][q]
+            phi[c][q]
         };
-        let mut updates = Vec::new();
         let mut visit = |i: usize, j: usize, k: usize| {
             let diff = |lo: [usize; 3], hi: [usize; 3], steps: usize| {
-                (at(&self.phi, hi[0], hi[1], hi[2]) - at(&self.phi, lo[0], lo[1], lo[2]))
+                (at(hi[0], hi[1], hi[2]) - at(lo[0], lo[1], lo[2]))
                     * p.inv_2dl
                     * T::c(2.0 / steps as f64)
             };
@@ -345,13 +347,9 @@ impl<T: Real> CpuFld<T> {
             let gz = diff([i, j, zl], [i, j, zr], zr - zl);
             let gnorm = (gx * gx + gy * gy + gz * gz).sqrt();
             let (c, q) = packed_index(&g, h, i, j, k);
-            let s = self.sig[c][q];
-            let r = gnorm.max(p.floor) / (s * self.phi[c][q]).max(p.floor);
-            updates.push((
-                c,
-                q,
-                p.theta * (lim.eval(r) / s) + p.one_minus_theta * self.d[c][q],
-            ));
+            let s = sig[c][q];
+            let r = gnorm.max(p.floor) / (s * phi[c][q]).max(p.floor);
+            d[c][q] = p.theta * (lim.eval(r) / s) + p.one_minus_theta * d[c][q];
         };
         for k in 0..nz {
             for j in 0..ny {
@@ -362,9 +360,6 @@ impl<T: Real> CpuFld<T> {
                     visit(nx - 1, j, k);
                 }
             }
-        }
-        for (c, q, v) in updates {
-            self.d[c][q] = v;
         }
     }
 
