@@ -8,7 +8,8 @@
 //! | [`fld`] | classical diffusion (CDA) and flux-limited diffusion (FLD), red-black SOR | Koerner et al., *Flux-Limited Diffusion for Multiple Scattering in Participating Media* (FLD Eqs 30–37, Algorithm 1) |
 //!
 //! Shared building blocks: [`grid`] (the voxel grid), [`medium`] (σt, albedo and emission
-//! fields), [`scenes`] (procedural test media), [`noise`] (seeded gradient noise) and
+//! fields), [`scene`] (medium + phase + lights + camera, shared with the path tracer),
+//! [`scenes`] (procedural test media), [`noise`] (seeded gradient noise) and
 //! [`real`] (the `f32`/`f64` abstraction every CPU kernel is generic over).
 //!
 //! Conventions: lengths in arbitrary but consistent units; σt in inverse length; emission
@@ -22,6 +23,7 @@ pub mod grid;
 pub mod medium;
 pub mod noise;
 pub mod real;
+pub mod scene;
 pub mod scenes;
 
 pub use error::SolverError;
