@@ -193,14 +193,15 @@ impl Camera {
     /// Checks that the frame is well defined and the resolution non-zero.
     pub fn validate(&self) -> Result<(), SolverError> {
         let forward = sub(self.target, self.eye);
-        if !(norm(forward) > 0.0) {
+        if norm(forward).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return Err(SolverError::BadParameter {
                 name: "camera.target",
                 value: norm(forward),
                 reason: "must differ from camera.eye",
             });
         }
-        if !(norm(cross(forward, self.up)) > 1e-12 * norm(forward) * norm(self.up)) {
+        let sine = norm(cross(forward, self.up)) / (norm(forward) * norm(self.up));
+        if sine.partial_cmp(&1e-12) != Some(std::cmp::Ordering::Greater) {
             return Err(SolverError::BadParameter {
                 name: "camera.up",
                 value: norm(self.up),
