@@ -65,4 +65,10 @@ pub enum SolverError {
         "unknown flux limiter `{0}`; expected one of cda, sum, max, kershaw, larsen<n> (e.g. larsen2), lp"
     )]
     UnknownLimiter(String),
+    /// A GPU backend failure (no adapter, grid too large for the device, device lost …).
+    #[error(transparent)]
+    Gpu(#[from] crate::gpu::GpuError),
+    /// The requested combination of backend and precision does not exist.
+    #[error("{0}")]
+    Unsupported(String),
 }

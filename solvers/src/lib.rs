@@ -17,8 +17,10 @@
 //! x fastest: `index = i + nx * (j + ny * k)`.
 #![deny(missing_docs)]
 
+pub mod backend;
 pub mod error;
 pub mod fld;
+pub mod gpu;
 pub mod grid;
 pub mod medium;
 pub mod noise;
@@ -26,6 +28,7 @@ pub mod real;
 pub mod scene;
 pub mod scenes;
 
+pub use backend::{Backend, Precision};
 pub use error::SolverError;
 pub use grid::Grid;
 pub use medium::Medium;

@@ -14,22 +14,23 @@
 //! φ'_p by Eq 32, SOR by Eq 36, residual by Eq 37 (before the update; see [`super`]).
 
 use super::{Boundary, FldConfig, FldSolution, FluxLimiter, KnudsenSigma, Status};
+use crate::gpu::Timer;
 use crate::{Grid, Medium, Real, SolverError};
 use rayon::prelude::*;
 use std::time::Instant;
 
 /// Per-solve constants used inside the hot loop.
 #[derive(Debug, Clone, Copy)]
-struct Params<T> {
-    omega: T,
-    one_minus_omega: T,
-    inv_2dl: T,
-    inv_dl2: T,
+pub(super) struct Params<T> {
+    pub(super) omega: T,
+    pub(super) one_minus_omega: T,
+    pub(super) inv_2dl: T,
+    pub(super) inv_dl2: T,
     /// ε j̄: floor of |∇φ| and σφ in the Knudsen number (FLD Eq 35).
-    floor: T,
+    pub(super) floor: T,
     /// Under-relaxation θ of the D update and 1 − θ.
-    theta: T,
-    one_minus_theta: T,
+    pub(super) theta: T,
+    pub(super) one_minus_theta: T,
 }
 
 /// The packed red-black state of one diffusion solve.
@@ -221,6 +222,31 @@ impl<T: Real> CpuFld<T> {
         self.j_ref
     }
 
+    /// The per-solve constants (shared with the GPU kernel's uniforms).
+    pub(super) fn params(&self) -> Params<T> {
+        self.params
+    }
+
+    /// Voxels next to the boundary layer left out of the residual (after the small-grid fallback).
+    pub(super) fn residual_margin(&self) -> usize {
+        self.config.residual_margin
+    }
+
+    /// Number of voxels in the RMS residual.
+    pub(super) fn residual_count(&self) -> usize {
+        self.residual_count
+    }
+
+    /// No source and a zero boundary: φ = 0 without iterating.
+    pub(super) fn is_trivial(&self) -> bool {
+        self.trivial
+    }
+
+    /// The packed initial fields φ, D, σ, absorption and source, each as (red, black).
+    pub(super) fn packed_fields(&self) -> [&[Vec<T>; 2]; 5] {
+        [&self.phi, &self.d, &self.sig, &self.absorb, &self.src]
+    }
+
     /// Bytes one iteration must move at least, counting every packed field once per pass it
     /// is read or written (medium 3 fields + own φ, D read and written + other colour φ, D
     /// read), i.e. 9 values per voxel per iteration for FLD and 7 for CDA (D is constant).
@@ -286,6 +312,7 @@ impl<T: Real> CpuFld<T> {
             status,
             seconds,
             setup_seconds: self.setup_seconds,
+            timer: Timer::WallClock,
         }
     }
 

@@ -9,6 +9,7 @@
 //! * [`FldConfig`]: SOR factor, tolerance, floors σ_ε and ε, stopping rule.
 //! * [`Boundary`]: zero Dirichlet (the paper's) or Dirichlet values from a function.
 //! * [`cpu::CpuFld`]: the rayon kernel, generic over `f32`/`f64`.
+//! * [`gpu::GpuFld`]: the wgpu kernel (f32, `fld.wgsl`), same layout and arithmetic.
 //!
 //! ## Decisions where the paper is silent (each is tested in `cpu.rs`)
 //! * **Boundary layer.** The outermost voxel layer holds the Dirichlet values and is never
@@ -50,12 +51,15 @@
 //!   homogeneity test covers 10⁻³⁰ … 10³⁰ in both precisions.
 
 pub mod cpu;
+pub mod gpu;
 pub mod limiter;
 
 pub use cpu::CpuFld;
+pub use gpu::GpuFld;
 pub use limiter::FluxLimiter;
 
-use crate::{Grid, Real, SolverError};
+use crate::gpu::Timer;
+use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
 
 /// Which extinction enters the Knudsen number R = |∇φ|/(σ φ) and D = F(R)/σ.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -217,6 +221,51 @@ impl<T: Real> Boundary<T> {
     }
 }
 
+impl Boundary<f64> {
+    /// The same boundary in another precision.
+    pub fn cast<U: Real>(&self) -> Boundary<U> {
+        match self {
+            Boundary::Zero => Boundary::Zero,
+            Boundary::Values(v) => Boundary::Values(v.iter().map(|&x| U::c(x)).collect()),
+        }
+    }
+}
+
+/// Solves on any [`Backend`]: the medium and boundary are given in `f64` and converted to
+/// the backend's precision; φ comes back in `f64`. `observer(iteration, residual)` sees every
+/// iteration (on the GPU in batches of [`GpuFld::check_every`], as residuals are read back).
+pub fn solve(
+    backend: &Backend<'_>,
+    medium: &Medium<f64>,
+    boundary: &Boundary<f64>,
+    config: &FldConfig,
+    observer: impl FnMut(usize, f64),
+) -> Result<FldSolution<f64>, SolverError> {
+    fn widen<T: Real>(s: FldSolution<T>) -> FldSolution<f64> {
+        FldSolution {
+            grid: s.grid,
+            phi: s.phi.iter().map(|x| x.f()).collect(),
+            residuals: s.residuals,
+            iterations: s.iterations,
+            status: s.status,
+            seconds: s.seconds,
+            setup_seconds: s.setup_seconds,
+            timer: s.timer,
+        }
+    }
+    match backend {
+        Backend::Cpu(Precision::F64) => {
+            Ok(CpuFld::new(medium, boundary, config)?.solve_observed(observer))
+        }
+        Backend::Cpu(Precision::F32) => Ok(widen(
+            CpuFld::<f32>::new(&medium.cast(), &boundary.cast(), config)?.solve_observed(observer),
+        )),
+        Backend::Gpu(ctx) => Ok(widen(
+            GpuFld::new(ctx, &medium.cast(), &boundary.cast(), config)?.solve_observed(observer)?,
+        )),
+    }
+}
+
 /// Why a solve stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Status {
@@ -243,8 +292,10 @@ pub struct FldSolution<T> {
     pub status: Status,
     /// Wall-clock seconds of the iterations (setup excluded).
     pub seconds: f64,
-    /// Wall-clock seconds of setup (packing the medium).
+    /// Wall-clock seconds of setup (packing the medium; GPU: also uploads and pipelines).
     pub setup_seconds: f64,
+    /// How `seconds` was measured.
+    pub timer: Timer,
 }
 
 impl<T> FldSolution<T> {

@@ -1,0 +1,286 @@
+// FLD Algorithm 1 on the GPU (f32): red-black SOR passes with FLD Eqs 32-37, the boundary-layer
+// D update and the RMS residual reduced on the GPU. The host wrapper is `fld/gpu.rs`; `Params`
+// mirrors its `#[repr(C)] GpuParams`.
+//
+// Layout (same as the CPU kernel, see `fld/cpu.rs`): each field holds two packed
+// checkerboards, colour c at offset c * plen. Colour c keeps, per row (j, k), the voxels
+// i = 2m + s with s = (c + j + k) mod 2 at position m of a row of h values. The
+// x-neighbours of (m, row) are entries m + s - 1 and m + s of the other colour's row; its
+// y/z-neighbours are entry m of the adjacent rows of the other colour.
+//
+// Stopping: `state.done` is set by `reduce` once the residual is below the tolerance (or not
+// finite); every kernel then returns at once, so the host may record more iterations than
+// needed and read back only every few of them.
+
+// Which flux limiter (FLD Table 2): 0 CDA, 1 sum, 2 max, 3 Kershaw, 4 Larsen-n, 5 LP.
+override LIMITER: u32 = 5u;
+
+struct Params {
+    nx: u32,
+    ny: u32,
+    nz: u32,
+    h: u32,
+    plen: u32,
+    color: u32,
+    // Residual-counted voxels: lo <= i <= hi_x, lo <= j <= hi_y, lo <= k <= hi_z.
+    lo: u32,
+    hi_x: u32,
+    hi_y: u32,
+    hi_z: u32,
+    boundary_count: u32,
+    boundary_row: u32,
+    partials_per_color: u32,
+    chunk: u32,
+    _pad0: u32,
+    _pad1: u32,
+    omega: f32,
+    one_minus_omega: f32,
+    inv_2dl: f32,
+    inv_dl2: f32,
+    floor: f32,
+    theta: f32,
+    one_minus_theta: f32,
+    larsen_n: f32,
+    tolerance: f32,
+    inv_residual_count: f32,
+    _pad2: f32,
+    _pad3: f32,
+}
+
+struct State {
+    // Iterations completed (residual computed).
+    iter: u32,
+    // 0 running, 1 converged, 2 non-finite residual.
+    done: u32,
+    _pad0: u32,
+    _pad1: u32,
+    // Residual of iteration `iter` at index iter % chunk.
+    residuals: array<f32>,
+}
+
+@group(0) @binding(0) var<uniform> P: Params;
+@group(0) @binding(1) var<storage, read_write> phi: array<f32>;
+@group(0) @binding(2) var<storage, read_write> dcoef: array<f32>;
+@group(0) @binding(3) var<storage, read> sig: array<f32>;
+@group(0) @binding(4) var<storage, read> absorb: array<f32>;
+@group(0) @binding(5) var<storage, read> src: array<f32>;
+@group(0) @binding(6) var<storage, read_write> partials: array<f32>;
+@group(0) @binding(7) var<storage, read_write> state: State;
+@group(0) @binding(8) var<storage, read> boundary: array<u32>;
+
+var<workgroup> wg_done: u32;
+var<workgroup> red: array<f32, 256>;
+
+// F(R) of FLD Table 2, written as in `fld/limiter.rs` so f32 neither overflows nor cancels.
+fn limiter(r_in: f32) -> f32 {
+    let r = max(r_in, 0.0);
+    switch LIMITER {
+        case 1u: {
+            return 1.0 / (3.0 + r);
+        }
+        case 2u: {
+            return 1.0 / max(3.0, r);
+        }
+        case 3u: {
+            // 2 / (3 + sqrt(9 + 4R^2)) with a scaled hypotenuse.
+            let m = max(3.0, 2.0 * r);
+            let a = 3.0 / m;
+            let b = 2.0 * r / m;
+            return 2.0 / (3.0 + m * sqrt(a * a + b * b));
+        }
+        case 4u: {
+            let n = P.larsen_n;
+            let m = max(3.0, r);
+            let s = pow(3.0 / m, n) + pow(r / m, n);
+            return 1.0 / (m * pow(s, 1.0 / n));
+        }
+        case 5u: {
+            if (r <= 2.0) {
+                // Levermore-Pomraning through its continued fraction (depth 10).
+                let a = r * r;
+                var a_prev = 1.0;
+                var a_cur = 3.0;
+                var b_prev = 0.0;
+                var b_cur = 1.0;
+                for (var k = 1u; k <= 10u; k = k + 1u) {
+                    let bk = f32(2u * k + 3u);
+                    let a_next = bk * a_cur + a * a_prev;
+                    let b_next = bk * b_cur + a * b_prev;
+                    a_prev = a_cur;
+                    a_cur = a_next;
+                    b_prev = b_cur;
+                    b_cur = b_next;
+                }
+                return b_cur / a_cur;
+            }
+            let e = exp(-2.0 * r);
+            let coth = (1.0 + e) / (1.0 - e);
+            return (coth - 1.0 / r) / r;
+        }
+        default: {
+            return 1.0 / 3.0;
+        }
+    }
+}
+
+// Packed index (colour offset included) of natural voxel (i, j, k).
+fn packed(i: u32, j: u32, k: u32) -> u32 {
+    let c = (i + j + k) & 1u;
+    return c * P.plen + (k * P.ny + j) * P.h + i / 2u;
+}
+
+// Whether the done flag is set, read uniformly across the workgroup.
+fn finished(lid: u32) -> bool {
+    if (lid == 0u) {
+        wg_done = state.done;
+    }
+    return workgroupUniformLoad(&wg_done) != 0u;
+}
+
+// Tree reduction of `red` over the workgroup; the sum ends in red[0].
+fn reduce_workgroup(lid: u32) {
+    for (var stride = 128u; stride > 0u; stride = stride >> 1u) {
+        workgroupBarrier();
+        if (lid < stride) {
+            red[lid] = red[lid] + red[lid + stride];
+        }
+    }
+    workgroupBarrier();
+}
+
+// D on the boundary layer (FLD only): F(R)/sigma with one-sided gradients where a neighbour is
+// outside the grid, under-relaxed by theta (see the `fld` module docs).
+@compute @workgroup_size(64, 1, 1)
+fn boundary_d(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    if (finished(lid)) {
+        return;
+    }
+    let t = gid.x + gid.y * P.boundary_row;
+    if (t >= P.boundary_count) {
+        return;
+    }
+    let n = boundary[t];
+    let i = n % P.nx;
+    let j = (n / P.nx) % P.ny;
+    let k = n / (P.nx * P.ny);
+    let xl = select(i - 1u, 0u, i == 0u);
+    let xr = min(i + 1u, P.nx - 1u);
+    let yl = select(j - 1u, 0u, j == 0u);
+    let yr = min(j + 1u, P.ny - 1u);
+    let zl = select(k - 1u, 0u, k == 0u);
+    let zr = min(k + 1u, P.nz - 1u);
+    let gx = (phi[packed(xr, j, k)] - phi[packed(xl, j, k)]) * P.inv_2dl * (2.0 / f32(xr - xl));
+    let gy = (phi[packed(i, yr, k)] - phi[packed(i, yl, k)]) * P.inv_2dl * (2.0 / f32(yr - yl));
+    let gz = (phi[packed(i, j, zr)] - phi[packed(i, j, zl)]) * P.inv_2dl * (2.0 / f32(zr - zl));
+    let gnorm = sqrt(gx * gx + gy * gy + gz * gz);
+    let q = packed(i, j, k);
+    let s = sig[q];
+    let r = max(gnorm, P.floor) / max(s * phi[q], P.floor);
+    dcoef[q] = P.theta * (limiter(r) / s) + P.one_minus_theta * dcoef[q];
+}
+
+// One colour pass (P.color) over the interior: FLD Eqs 34, 35, 33 (D), 32 (phi'), 36 (SOR,
+// projected onto phi >= 0) and 37 (residual before the update). Writes the workgroup's sum
+// of squared residuals to `partials`.
+@compute @workgroup_size(64, 4, 1)
+fn sweep(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    if (finished(lid)) {
+        return;
+    }
+    let c = P.color;
+    let m = gid.x;
+    let j = gid.y;
+    let k = gid.z;
+    let s = (c + j + k) & 1u;
+    let i = 2u * m + s;
+    var r2 = 0.0;
+    if (m < P.h && i >= 1u && i + 1u < P.nx && j >= 1u && j + 1u < P.ny && k >= 1u && k + 1u < P.nz) {
+        let row = (k * P.ny + j) * P.h;
+        let own = c * P.plen + row + m;
+        let oth = (1u - c) * P.plen + row;
+        let slab = P.ny * P.h;
+        let n0 = oth + m + s - 1u;
+        let n1 = oth + m + s;
+        let n2 = oth - P.h + m;
+        let n3 = oth + P.h + m;
+        let n4 = oth - slab + m;
+        let n5 = oth + slab + m;
+        let p0 = phi[n0];
+        let p1 = phi[n1];
+        let p2 = phi[n2];
+        let p3 = phi[n3];
+        let p4 = phi[n4];
+        let p5 = phi[n5];
+        let d0 = dcoef[n0];
+        let d1 = dcoef[n1];
+        let d2 = dcoef[n2];
+        let d3 = dcoef[n3];
+        let d4 = dcoef[n4];
+        let d5 = dcoef[n5];
+        let phi_p = phi[own];
+        var d_p = dcoef[own];
+        if (LIMITER != 0u) {
+            let gx = (p1 - p0) * P.inv_2dl;
+            let gy = (p3 - p2) * P.inv_2dl;
+            let gz = (p5 - p4) * P.inv_2dl;
+            let gnorm = sqrt(gx * gx + gy * gy + gz * gz);
+            let sg = sig[own];
+            let r = max(gnorm, P.floor) / max(sg * phi_p, P.floor);
+            d_p = P.theta * (limiter(r) / sg) + P.one_minus_theta * d_p;
+            dcoef[own] = d_p;
+        }
+        let sum_phi = p0 + p1 + p2 + p3 + p4 + p5;
+        let sum_dphi = d0 * p0 + d1 * p1 + d2 * p2 + d3 * p3 + d4 * p4 + d5 * p5;
+        let sum_d = d0 + d1 + d2 + d3 + d4 + d5;
+        let num = src[own] + 0.5 * (d_p * sum_phi + sum_dphi);
+        let den = absorb[own] + 0.5 * (6.0 * d_p + sum_d);
+        let res = (num - phi_p * den) * P.inv_dl2;
+        let counted = i >= P.lo && i <= P.hi_x && j >= P.lo && j <= P.hi_y && k >= P.lo && k <= P.hi_z;
+        r2 = select(0.0, res * res, counted);
+        let updated = P.omega * (num / den) + P.one_minus_omega * phi_p;
+        // Projection onto phi >= 0; NaN passes through (the comparison is false).
+        phi[own] = select(updated, 0.0, updated < 0.0);
+    }
+    red[lid] = r2;
+    reduce_workgroup(lid);
+    if (lid == 0u) {
+        let wg = wid.x + nwg.x * (wid.y + nwg.y * wid.z);
+        partials[c * P.partials_per_color + wg] = red[0];
+    }
+}
+
+// Sums both colours' partials in a fixed order, stores the normalised RMS residual of this
+// iteration and sets `done` when it is below the tolerance or not finite.
+@compute @workgroup_size(256, 1, 1)
+fn reduce(@builtin(local_invocation_index) lid: u32) {
+    if (finished(lid)) {
+        return;
+    }
+    var acc = 0.0;
+    let total = 2u * P.partials_per_color;
+    for (var t = lid; t < total; t = t + 256u) {
+        acc = acc + partials[t];
+    }
+    red[lid] = acc;
+    reduce_workgroup(lid);
+    if (lid == 0u) {
+        let r = sqrt(red[0] * P.inv_residual_count);
+        let it = state.iter;
+        state.residuals[it % P.chunk] = r;
+        state.iter = it + 1u;
+        // Infinity or NaN: all exponent bits set (no isnan in WGSL; compilers may fold x != x).
+        if ((bitcast<u32>(r) & 0x7f800000u) == 0x7f800000u) {
+            state.done = 2u;
+        } else if (r < P.tolerance) {
+            state.done = 1u;
+        }
+    }
+}
