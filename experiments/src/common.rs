@@ -20,6 +20,84 @@ pub struct CommonArgs {
     pub no_progress: bool,
 }
 
+/// The `--backend` flag of every experiment that runs a grid solver.
+#[derive(Debug, Clone, clap::Args)]
+pub struct BackendArgs {
+    /// Where the solvers run: `cpu`, `gpu` (wgpu, f32; adapter from WGPU_ADAPTER_NAME /
+    /// WGPU_BACKEND) or `both`. `--precision` applies to CPU runs; GPU runs are f32.
+    #[arg(long, default_value = "cpu")]
+    pub backend: String,
+}
+
+/// The backends an experiment runs on, with the GPU context they borrow.
+#[derive(Debug)]
+pub struct Backends {
+    cpu: bool,
+    gpu: Option<solvers::gpu::GpuContext>,
+}
+
+impl BackendArgs {
+    /// Parses the flag and opens the GPU if one is asked for (an error, with the reason,
+    /// if there is none).
+    pub fn open(&self) -> Result<Backends> {
+        let (cpu, gpu) = match self.backend.trim() {
+            "cpu" => (true, false),
+            "gpu" => (false, true),
+            "both" => (true, true),
+            other => anyhow::bail!("--backend must be cpu, gpu or both, got `{other}`"),
+        };
+        let gpu = if gpu {
+            let ctx =
+                solvers::gpu::GpuContext::from_env().context("opening the GPU for --backend")?;
+            Some(ctx)
+        } else {
+            None
+        };
+        Ok(Backends { cpu, gpu })
+    }
+}
+
+impl Backends {
+    /// The selected backends, CPU first; the CPU one in `cpu_precision`.
+    pub fn list(&self, cpu_precision: solvers::Precision) -> Vec<solvers::Backend<'_>> {
+        let mut v = Vec::new();
+        if self.cpu {
+            v.push(solvers::Backend::Cpu(cpu_precision));
+        }
+        if let Some(ctx) = &self.gpu {
+            v.push(solvers::Backend::Gpu(ctx));
+        }
+        v
+    }
+
+    /// File-name suffix for the plots of `backend`: empty for the first backend in the list,
+    /// `_gpu` for the GPU when the CPU also runs.
+    pub fn plot_suffix(&self, backend: &str) -> &'static str {
+        if backend == "gpu" && self.cpu {
+            "_gpu"
+        } else {
+            ""
+        }
+    }
+
+    /// What `meta.json` records: the backends, and the adapter's name, backend, type, driver
+    /// and timer when a GPU is used.
+    pub fn meta(&self) -> serde_json::Value {
+        let gpu = self.gpu.as_ref().map(|ctx| {
+            let i = ctx.info();
+            serde_json::json!({
+                "adapter": i.name,
+                "backend": format!("{:?}", i.backend),
+                "device_type": format!("{:?}", i.device_type),
+                "driver": i.driver,
+                "driver_info": i.driver_info,
+                "timer": ctx.timer().to_string(),
+            })
+        });
+        serde_json::json!({ "cpu": self.cpu, "gpu": gpu })
+    }
+}
+
 /// The workspace root (parent of this crate's manifest directory).
 pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -37,6 +115,7 @@ pub struct Output {
     started: Instant,
     timings: Vec<(String, f64)>,
     params: serde_json::Value,
+    extra: serde_json::Map<String, serde_json::Value>,
 }
 
 impl Output {
@@ -55,6 +134,7 @@ impl Output {
             started: Instant::now(),
             timings: Vec::new(),
             params,
+            extra: serde_json::Map::new(),
         })
     }
 
@@ -66,6 +146,11 @@ impl Output {
     /// Records a named timing for `meta.json`.
     pub fn timing(&mut self, what: impl Into<String>, seconds: f64) {
         self.timings.push((what.into(), seconds));
+    }
+
+    /// Adds a top-level entry to `meta.json` (e.g. `backends` with the GPU adapter).
+    pub fn record(&mut self, key: &str, value: serde_json::Value) {
+        self.extra.insert(key.to_string(), value);
     }
 
     /// Writes rows as CSV (header from the struct's field names).
@@ -85,7 +170,7 @@ impl Output {
     /// Writes `meta.json`: experiment, command line, parameters, git revision, machine,
     /// timings and total wall time.
     pub fn finish(&self) -> Result<()> {
-        let meta = serde_json::json!({
+        let mut meta = serde_json::json!({
             "experiment": self.name,
             "command": std::env::args().collect::<Vec<_>>(),
             "parameters": self.params,
@@ -95,6 +180,9 @@ impl Output {
             "wall_seconds": self.started.elapsed().as_secs_f64(),
             "crate_version": env!("CARGO_PKG_VERSION"),
         });
+        if let Some(m) = meta.as_object_mut() {
+            m.extend(self.extra.clone());
+        }
         let path = self.path("meta.json");
         std::fs::write(&path, serde_json::to_string_pretty(&meta)?)
             .with_context(|| format!("writing {}", path.display()))?;

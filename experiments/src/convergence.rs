@@ -7,12 +7,12 @@
 //! (c) the effect of the extinction floor σ_ε on convergence in f32 (the paper uses its
 //!     Nebulae dataset; we use the same cloud, whose vacuum is where σ_ε acts).
 
-use crate::common::{CommonArgs, Output, parse_list, progress};
+use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress};
 use crate::plot::{Axis, Series, Style, plot};
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use serde::Serialize;
-use solvers::fld::{Boundary, CpuFld, FldConfig, FluxLimiter};
-use solvers::{Real, scenes};
+use solvers::fld::{self, Boundary, FldConfig, FluxLimiter};
+use solvers::{Backend, Precision, scenes};
 
 /// Flags of `convergence`.
 #[derive(Debug, Clone, clap::Parser)]
@@ -23,6 +23,10 @@ pub struct Args {
     /// Shared flags.
     #[command(flatten)]
     pub common: CommonArgs,
+    /// Shared backend flag (GPU runs are f32, so on the GPU (a) and (b) stop at the f32
+    /// tolerance R̄/j̄ < 1e-4 instead of 1e-6).
+    #[command(flatten)]
+    pub backend: BackendArgs,
     /// Grid for (a) and (c). Default 51 (25 with --quick).
     #[arg(long)]
     pub n: Option<usize>,
@@ -57,6 +61,7 @@ struct ResidualRow {
     residual: f64,
     theta: f64,
     precision: &'static str,
+    backend: &'static str,
 }
 
 /// `iterations.csv` row.
@@ -72,14 +77,18 @@ pub struct IterRow {
     pub sigma_eps: f64,
     /// Iterations run.
     pub iterations: usize,
-    /// Wall seconds.
+    /// Seconds of the iterations (GPU: timestamp queries where available, see `timer`).
     pub seconds: f64,
+    /// How `seconds` was measured: `wall-clock` or `gpu-timestamps`.
+    pub timer: String,
     /// Whether R̄/j̄ reached the tolerance.
     pub converged: bool,
     /// D under-relaxation θ.
     pub theta: f64,
     /// Precision.
     pub precision: &'static str,
+    /// `cpu` or `gpu`.
+    pub backend: &'static str,
 }
 
 struct Job {
@@ -154,41 +163,89 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
         });
     }
     let params = serde_json::json!({"n": n, "omega": omegas, "resolutions": resolutions, "omega_sweep": args.omega_sweep, "sigma_eps_times_L": eps, "max_iterations": args.max_iterations, "seed": args.seed, "limiter": "lp"});
+    let backends = args.backend.open()?;
     let mut out = Output::new("convergence", &args.common, params)?;
-    let pb = progress(jobs.len() as u64, &args.common, "convergence");
+    out.record("backends", backends.meta());
+    let kinds = backends.list(Precision::F64).len();
+    let pb = progress((jobs.len() * kinds) as u64, &args.common, "convergence");
     let (mut residuals, mut iters) = (Vec::new(), Vec::new());
     for job in &jobs {
-        pb.set_message(format!("{} ω={} n={}", job.case, job.omega, job.n));
-        let (row, res) = if job.f32 {
-            solve::<f32>(args, job, &pb)?
+        let precision = if job.f32 {
+            Precision::F32
         } else {
-            solve::<f64>(args, job, &pb)?
+            Precision::F64
         };
-        out.timing(
-            format!(
-                "{} ω={} n={} σε={:?} θ={}",
-                job.case, job.omega, job.n, job.sigma_eps, job.theta
-            ),
-            row.seconds,
-        );
-        for (i, r) in res.into_iter().enumerate() {
-            residuals.push(ResidualRow {
-                case: job.case,
-                omega: job.omega,
-                n: job.n,
-                sigma_eps: row.sigma_eps,
-                iteration: i + 1,
-                residual: r,
-                theta: job.theta,
-                precision: row.precision,
-            });
+        for backend in backends.list(precision) {
+            pb.set_message(format!(
+                "{} ω={} n={} {backend}",
+                job.case, job.omega, job.n
+            ));
+            let (row, res) = solve(args, job, &backend, &pb)?;
+            out.timing(
+                format!(
+                    "{} ω={} n={} σε={:?} θ={} {backend}",
+                    job.case, job.omega, job.n, job.sigma_eps, job.theta
+                ),
+                row.seconds,
+            );
+            for (i, r) in res.into_iter().enumerate() {
+                residuals.push(ResidualRow {
+                    case: job.case,
+                    omega: job.omega,
+                    n: job.n,
+                    sigma_eps: row.sigma_eps,
+                    iteration: i + 1,
+                    residual: r,
+                    theta: job.theta,
+                    precision: row.precision,
+                    backend: row.backend,
+                });
+            }
+            iters.push(row);
+            pb.inc(1);
         }
-        iters.push(row);
-        pb.inc(1);
     }
     pb.finish_and_clear();
     out.csv("residuals.csv", &residuals)?;
     out.csv("iterations.csv", &iters)?;
+    for backend in backends.list(Precision::F64) {
+        let kind = backend.kind();
+        let res: Vec<&ResidualRow> = residuals.iter().filter(|r| r.backend == kind).collect();
+        let its: Vec<&IterRow> = iters.iter().filter(|r| r.backend == kind).collect();
+        plots(
+            &out,
+            args,
+            n,
+            &omegas,
+            &eps,
+            &res,
+            &its,
+            &backend,
+            backends.plot_suffix(kind),
+        )?;
+    }
+    out.finish()?;
+    Ok(iters)
+}
+
+/// The three panels of Fig 4 for one backend.
+#[allow(clippy::too_many_arguments)]
+fn plots(
+    out: &Output,
+    args: &Args,
+    n: usize,
+    omegas: &[f64],
+    eps: &[f64],
+    residuals: &[&ResidualRow],
+    iters: &[&IterRow],
+    backend: &Backend<'_>,
+    suffix: &str,
+) -> Result<()> {
+    let (prec_ab, tol_ab) = match backend {
+        Backend::Gpu(_) => ("f32", "1e-4"),
+        Backend::Cpu(_) => ("f64", "1e-6"),
+    };
+    let on = backend.kind();
 
     let curve = |case: &str, key: &dyn Fn(&ResidualRow) -> bool| -> Vec<(f64, f64)> {
         residuals
@@ -218,8 +275,8 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
         ));
     }
     plot(
-        &out.path("fig4a_residual_vs_iteration.png"),
-        &format!("FLD Fig 4a: FLD-LP on the vacuum cloud, {n}³, f64"),
+        &out.path(&format!("fig4a_residual_vs_iteration{suffix}.png")),
+        &format!("FLD Fig 4a: FLD-LP on the vacuum cloud, {n}³, {on}-{prec_ab}"),
         &Axis::lin("iteration"),
         &y,
         &series,
@@ -230,15 +287,20 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
         .map(|r| (r.n as f64, r.iterations as f64))
         .collect();
     plot(
-        &out.path("fig4b_iterations_vs_resolution.png"),
+        &out.path(&format!("fig4b_iterations_vs_resolution{suffix}.png")),
         &format!(
-            "FLD Fig 4b: iterations to R̄/j̄ < 1e-6, ω = {}",
+            "FLD Fig 4b: iterations to R̄/j̄ < {tol_ab}, ω = {}, {on}",
             args.omega_sweep
         ),
         &Axis::lin("grid resolution n (n³ voxels)"),
         &Axis::lin("iterations"),
         &[
-            Series::new("FLD-LP, f64", pts.clone(), Style::Line, 0),
+            Series::new(
+                format!("FLD-LP, {on}-{prec_ab}"),
+                pts.clone(),
+                Style::Line,
+                0,
+            ),
             Series::new("", pts, Style::Points, 0),
         ],
     )?;
@@ -255,25 +317,25 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
         })
         .collect();
     plot(
-        &out.path("fig4c_sigma_eps.png"),
+        &out.path(&format!("fig4c_sigma_eps{suffix}.png")),
         &format!(
-            "FLD Fig 4c: extinction floor σε, {n}³, f32, ω = {}",
+            "FLD Fig 4c: extinction floor σε, {n}³, {on}-f32, ω = {}",
             args.omega_sweep
         ),
         &Axis::lin("iteration"),
         &y,
         &series,
     )?;
-    out.finish()?;
-    Ok(iters)
+    Ok(())
 }
 
-fn solve<T: Real>(
+fn solve(
     args: &Args,
     job: &Job,
+    backend: &Backend<'_>,
     pb: &indicatif::ProgressBar,
 ) -> Result<(IterRow, Vec<f64>)> {
-    let medium = scenes::vacuum_cloud::<T>(job.n, args.seed)?;
+    let medium = scenes::vacuum_cloud::<f64>(job.n, args.seed)?;
     let cfg = FldConfig {
         limiter: FluxLimiter::LevermorePomraning,
         omega: job.omega,
@@ -283,14 +345,15 @@ fn solve<T: Real>(
         ..FldConfig::default()
     };
     let sigma_eps = job.sigma_eps.unwrap_or(1e-3 / medium.grid.extent());
-    let sol = CpuFld::new(&medium, &Boundary::Zero, &cfg)?.solve_observed(|it, r| {
+    let sol = fld::solve(backend, &medium, &Boundary::Zero, &cfg, |it, r| {
         if it % 50 == 0 {
             pb.set_message(format!(
-                "{} ω={} n={} it {it} R̄/j̄ {r:.2e}",
+                "{} ω={} n={} {backend} it {it} R̄/j̄ {r:.2e}",
                 job.case, job.omega, job.n
             ));
         }
-    });
+    })
+    .with_context(|| format!("{} ω={} n={} on {backend}", job.case, job.omega, job.n))?;
     let row = IterRow {
         case: job.case,
         omega: job.omega,
@@ -298,9 +361,11 @@ fn solve<T: Real>(
         sigma_eps,
         iterations: sol.iterations,
         seconds: sol.seconds,
+        timer: sol.timer.to_string(),
         converged: sol.converged(),
         theta: job.theta,
-        precision: T::NAME,
+        precision: backend.precision().name(),
+        backend: backend.kind(),
     };
     Ok((row, sol.residuals))
 }

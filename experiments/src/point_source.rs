@@ -12,13 +12,13 @@
 //! Errors (in `runs.csv` and `results/README.md`): relative L2 error of φ against Grosjean
 //! over all voxels with 0 < τ < 1 ("near the source"), and over the +x profile up to τ = 1.5.
 
-use crate::common::{CommonArgs, Output, parse_list, progress};
+use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress};
 use crate::plot::{Axis, Series, Style, plot};
 use anyhow::{Context, Result, bail};
 use reference::point_source::{PointSource, Solution};
 use serde::Serialize;
-use solvers::fld::{Boundary, CpuFld, FldConfig, FluxLimiter, KnudsenSigma};
-use solvers::{Real, scenes};
+use solvers::fld::{self, Boundary, FldConfig, FluxLimiter, KnudsenSigma};
+use solvers::{Backend, Precision, scenes};
 
 /// Flags of `point_source`.
 #[derive(Debug, Clone, clap::Parser)]
@@ -27,6 +27,9 @@ pub struct Args {
     /// Shared flags.
     #[command(flatten)]
     pub common: CommonArgs,
+    /// Shared backend flag.
+    #[command(flatten)]
+    pub backend: BackendArgs,
     /// Grid resolution (odd). Default 127 (31 with --quick).
     #[arg(long)]
     pub n: Option<usize>,
@@ -46,7 +49,7 @@ pub struct Args {
     /// every FLD limiter.
     #[arg(long)]
     pub effective_albedo: bool,
-    /// Precision: f32 or f64.
+    /// Precision of CPU runs: f32 or f64 (GPU runs are f32).
     #[arg(long, default_value = "f64")]
     pub precision: String,
     /// SOR factor (default: the Poisson optimum 2/(1 + sin(π/n))).
@@ -73,6 +76,7 @@ struct ProfileRow {
     phi_norm: f64,
     knudsen: &'static str,
     precision: &'static str,
+    backend: &'static str,
 }
 
 /// Analytic curves (`analytic.csv`).
@@ -102,6 +106,8 @@ pub struct RunRow {
     pub n: usize,
     /// Precision.
     pub precision: &'static str,
+    /// `cpu` or `gpu`.
+    pub backend: &'static str,
     /// SOR factor used.
     pub omega: f64,
     /// Iterations run.
@@ -110,8 +116,10 @@ pub struct RunRow {
     pub converged: bool,
     /// Final R̄/j̄.
     pub residual: f64,
-    /// Wall seconds of the solve.
+    /// Seconds of the solve (GPU: timestamp queries where available, see `timer`).
     pub seconds: f64,
+    /// How `seconds` was measured: `wall-clock` or `gpu-timestamps`.
+    pub timer: String,
     /// Relative L2 error against Grosjean over voxels with 0 < τ < 1.
     pub err_grosjean_near: f64,
     /// Relative L2 error against Grosjean over the +x profile voxels with τ ≤ 1.5.
@@ -207,33 +215,42 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
         "boundary": args.boundary, "effective_albedo": args.effective_albedo, "precision": args.precision,
         "omega": args.omega.unwrap_or(FldConfig::poisson_optimal_omega(n)), "tolerance": args.tolerance, "max_iterations": args.max_iterations,
     });
+    let precision: Precision = args
+        .precision
+        .parse()
+        .with_context(|| format!("--precision `{}`", args.precision))?;
+    let backends = args.backend.open()?;
     let mut out = Output::new("point_source", &args.common, params)?;
-    let pb = progress(cases.len() as u64, &args.common, "point source");
+    out.record("backends", backends.meta());
+    let list = backends.list(precision);
+    let pb = progress(
+        (cases.len() * list.len()) as u64,
+        &args.common,
+        "point source",
+    );
     let mut profiles = Vec::new();
     let mut runs = Vec::new();
     for case in &cases {
-        pb.set_message(format!(
-            "{} {} α={}",
-            case.limiter, case.boundary, case.albedo
-        ));
-        let (run, prof) = match args.precision.as_str() {
-            "f32" => solve_case::<f32>(args, n, case, &pb)?,
-            "f64" => solve_case::<f64>(args, n, case, &pb)?,
-            p => bail!("--precision must be f32 or f64, got `{p}`"),
-        };
-        out.timing(
-            format!(
-                "{} {} {} α={}",
-                case.limiter,
-                case.boundary,
-                knudsen_name(case.knudsen),
-                case.albedo
-            ),
-            run.seconds,
-        );
-        runs.push(run);
-        profiles.extend(prof);
-        pb.inc(1);
+        for backend in &list {
+            pb.set_message(format!(
+                "{} {} α={} {backend}",
+                case.limiter, case.boundary, case.albedo
+            ));
+            let (run, prof) = solve_case(args, n, case, backend, &pb)?;
+            out.timing(
+                format!(
+                    "{} {} {} α={} {backend}",
+                    case.limiter,
+                    case.boundary,
+                    knudsen_name(case.knudsen),
+                    case.albedo
+                ),
+                run.seconds,
+            );
+            runs.push(run);
+            profiles.extend(prof);
+            pb.inc(1);
+        }
     }
     pb.finish_and_clear();
     out.csv("profiles.csv", &profiles)?;
@@ -255,18 +272,26 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
         })
         .collect();
     out.csv("analytic.csv", &analytic)?;
-    plots(&out, &albedos, &limiters, &profiles, &runs, &taus, n)?;
+    for backend in &list {
+        let kind = backend.kind();
+        let prof: Vec<&ProfileRow> = profiles.iter().filter(|p| p.backend == kind).collect();
+        let rs: Vec<&RunRow> = runs.iter().filter(|r| r.backend == kind).collect();
+        let suffix = backends.plot_suffix(kind);
+        let label = format!("{n}³, {backend}");
+        plots(&out, &albedos, &limiters, &prof, &rs, &taus, &label, suffix)?;
+    }
     out.finish()?;
     Ok(runs)
 }
 
-fn solve_case<T: Real>(
+fn solve_case(
     args: &Args,
     n: usize,
     case: &Case,
+    backend: &Backend<'_>,
     pb: &indicatif::ProgressBar,
 ) -> Result<(RunRow, Vec<ProfileRow>)> {
-    let (medium, src) = scenes::point_source::<T>(n, args.tau_extent, case.albedo)
+    let (medium, src) = scenes::point_source::<f64>(n, args.tau_extent, case.albedo)
         .context("building the point-source medium")?;
     let g = medium.grid;
     let ps = PointSource::new(args.tau_extent, case.albedo)?;
@@ -295,16 +320,21 @@ fn solve_case<T: Real>(
         knudsen: case.knudsen,
         ..FldConfig::default()
     };
-    let solver = CpuFld::new(&medium, &boundary, &cfg).context("setting up the solve")?;
-    let sol = solver.solve_observed(|it, r| {
+    let sol = fld::solve(backend, &medium, &boundary, &cfg, |it, r| {
         if it % 25 == 0 {
             pb.set_message(format!(
-                "{} {} α={} it {it} R̄/j̄ {r:.2e}",
+                "{} {} α={} {backend} it {it} R̄/j̄ {r:.2e}",
                 case.limiter, case.boundary, case.albedo
             ));
         }
-    });
-    let phi: Vec<f64> = sol.phi.iter().map(|x| x.f()).collect();
+    })
+    .with_context(|| {
+        format!(
+            "solving {} {} α={} on {backend}",
+            case.limiter, case.boundary, case.albedo
+        )
+    })?;
+    let phi = &sol.phi;
     // 3D errors near the source.
     let (mut ng, mut dg, mut nc, mut dc) = (0.0, 0.0, 0.0, 0.0);
     for (idx, &v) in phi.iter().enumerate() {
@@ -348,7 +378,8 @@ fn solve_case<T: Real>(
             tau,
             phi_norm: ps.normalize(v),
             knudsen: knudsen_name(case.knudsen),
-            precision: T::NAME,
+            precision: backend.precision().name(),
+            backend: backend.kind(),
         });
     }
     let run = RunRow {
@@ -358,12 +389,14 @@ fn solve_case<T: Real>(
         knudsen: knudsen_name(case.knudsen),
         albedo: case.albedo,
         n,
-        precision: T::NAME,
+        precision: backend.precision().name(),
+        backend: backend.kind(),
         omega,
         iterations: sol.iterations,
         converged: sol.converged(),
         residual: sol.final_residual(),
         seconds: sol.seconds,
+        timer: sol.timer.to_string(),
         err_grosjean_near: (ng / dg).sqrt(),
         err_grosjean_profile: (np / dp).sqrt(),
         err_cda_near: (nc / dc).sqrt(),
@@ -371,14 +404,16 @@ fn solve_case<T: Real>(
     Ok((run, profile))
 }
 
+#[allow(clippy::too_many_arguments)]
 fn plots(
     out: &Output,
     albedos: &[f64],
     limiters: &[FluxLimiter],
-    profiles: &[ProfileRow],
-    runs: &[RunRow],
+    profiles: &[&ProfileRow],
+    runs: &[&RunRow],
     taus: &[f64],
-    n: usize,
+    label: &str,
+    suffix: &str,
 ) -> Result<()> {
     let x = Axis::log("optical depth τ");
     let y = Axis::log("normalised fluence φ̃ (Eq 25)").range(1e-2, 1e4);
@@ -413,19 +448,19 @@ fn plots(
         (
             "cda",
             "analytic",
-            "fig5a_cda_analytic_boundary.png",
+            "fig5a_cda_analytic_boundary",
             "FLD Fig 5a: CDA, Dirichlet boundary from Eq 27",
         ),
         (
             "cda",
             "zero",
-            "fig5b_cda_zero_boundary.png",
+            "fig5b_cda_zero_boundary",
             "FLD Fig 5b: CDA, zero boundary",
         ),
         (
             "lp",
             "zero",
-            "fig5c_fld_lp_zero_boundary.png",
+            "fig5c_fld_lp_zero_boundary",
             "FLD Fig 5c: FLD (Levermore–Pomraning), zero boundary",
         ),
     ];
@@ -450,7 +485,13 @@ fn plots(
                 c,
             ));
         }
-        plot(&out.path(file), &format!("{title} ({n}³)"), &x, &y, &series)?;
+        plot(
+            &out.path(&format!("{file}{suffix}.png")),
+            &format!("{title} ({label})"),
+            &x,
+            &y,
+            &series,
+        )?;
     }
     // Limiter comparison: one panel per albedo, every limiter against Grosjean.
     if limiters.len() > 1 {
@@ -472,8 +513,8 @@ fn plots(
                 ));
             }
             plot(
-                &out.path(&format!("limiters_albedo_{a}.png")),
-                &format!("Flux limiters, zero boundary, α = {a} ({n}³)"),
+                &out.path(&format!("limiters_albedo_{a}{suffix}.png")),
+                &format!("Flux limiters, zero boundary, α = {a} ({label})"),
                 &x,
                 &y,
                 &series,
@@ -498,8 +539,8 @@ fn plots(
             }
         }
         plot(
-            &out.path("limiter_errors.png"),
-            &format!("Relative L2 error vs Grosjean for τ < 1 ({n}³, zero boundary)"),
+            &out.path(&format!("limiter_errors{suffix}.png")),
+            &format!("Relative L2 error vs Grosjean for τ < 1 ({label}, zero boundary)"),
             &Axis::lin("albedo α"),
             &Axis::log("relative L2 error"),
             &series,
