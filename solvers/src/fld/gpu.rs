@@ -424,6 +424,39 @@ impl<'a> GpuFld<'a> {
         Ok(&self.residuals[start..])
     }
 
+    /// Benchmarks: records `n` iterations in one compute pass, submits and waits, and returns
+    /// their seconds (GPU timestamps when the device has them, else the wall clock around
+    /// submit and wait). Convergence is not checked on the host: once the GPU's `done` flag
+    /// is set the remaining iterations are no-ops, so run with tolerance 0 to time real work.
+    pub fn time_iterations(&mut self, n: u32) -> Result<f64, SolverError> {
+        let mut timer = PassTimer::new(self.ctx);
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("fld timed iterations"),
+            });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("fld timed iterations"),
+                timestamp_writes: timer.writes(),
+            });
+            self.record_iterations(&mut pass, n);
+        }
+        timer.resolve(&mut encoder);
+        let reads: Vec<(&wgpu::Buffer, u64)> =
+            timer.readback().map(|b| (b, 16)).into_iter().collect();
+        let out = self.ctx.submit_and_read(encoder, &reads)?;
+        timer.record(out.first().map(|v| v.as_slice()));
+        Ok(timer.seconds())
+    }
+
+    /// Bytes one iteration must move at least (as [`CpuFld::bytes_per_iteration`] in f32:
+    /// 9 values per voxel for FLD, 7 for CDA).
+    pub fn bytes_per_iteration(&self) -> usize {
+        (if self.fld { 9 } else { 7 }) * self.grid.len() * 4
+    }
+
     /// Iterates to convergence, the iteration cap or a non-finite residual, calling
     /// `observer(iteration, residual)` for every iteration as its residual is read back.
     pub fn solve_observed(

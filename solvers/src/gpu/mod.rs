@@ -17,6 +17,9 @@
 
 pub mod bandwidth;
 
+/// The wgpu version this crate is built against, re-exported for callers' types.
+pub use wgpu;
+
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use thiserror::Error;
