@@ -124,8 +124,8 @@ impl<'a> GpuFld<'a> {
         config: &FldConfig,
     ) -> Result<Self, SolverError> {
         let t0 = Instant::now();
-        // The CPU kernel's setup is the single source of the packed initial state.
-        let host = CpuFld::<f32>::new(medium, boundary, config)?;
+        medium.validate()?;
+        config.validate()?;
         let grid = medium.grid;
         let [nx, ny, nz] = grid.n;
         let h = nx.div_ceil(2);
@@ -157,6 +157,9 @@ impl<'a> GpuFld<'a> {
             ctx.check_workgroups("the FLD sweep", g)?;
         }
         let partials_per_color = sweep_groups.iter().product::<u32>();
+        // Limits are checked above, before any host memory is spent. The CPU kernel's setup
+        // is the single source of the packed initial state.
+        let host = CpuFld::<f32>::new(medium, boundary, config)?;
         let fld = !config.limiter.is_constant();
         let boundary_list: Vec<u32> = if fld {
             (0..grid.len())

@@ -109,6 +109,28 @@ impl std::fmt::Display for Timer {
     }
 }
 
+/// Which adapter [`GpuContext::select`] opens.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdapterSelection {
+    /// Backends searched.
+    pub backends: wgpu::Backends,
+    /// The first adapter whose name contains this (case-insensitive); `None`: wgpu's choice.
+    pub name: Option<String>,
+    /// Preference when no name is given.
+    pub power_preference: wgpu::PowerPreference,
+}
+
+impl AdapterSelection {
+    /// From `WGPU_BACKEND`, `WGPU_ADAPTER_NAME` and `WGPU_POWER_PREF`.
+    pub fn from_env() -> Self {
+        Self {
+            backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY),
+            name: std::env::var("WGPU_ADAPTER_NAME").ok(),
+            power_preference: wgpu::PowerPreference::from_env().unwrap_or_default(),
+        }
+    }
+}
+
 /// Instance, adapter, device and queue of one GPU, plus what it reports about itself.
 #[derive(Debug)]
 pub struct GpuContext {
@@ -129,13 +151,18 @@ impl GpuContext {
     /// Opens the adapter selected by the environment (see the module docs) and creates a
     /// device with the adapter's full limits, and timestamp queries when it has them.
     pub fn from_env() -> Result<Self, GpuError> {
-        let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY);
+        Self::select(&AdapterSelection::from_env())
+    }
+
+    /// Opens the adapter described by `sel` (see [`AdapterSelection`]).
+    pub fn select(sel: &AdapterSelection) -> Result<Self, GpuError> {
+        let backends = sel.backends;
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
         desc.backends = backends;
         let instance = wgpu::Instance::new(desc);
         let adapters = pollster::block_on(instance.enumerate_adapters(backends));
-        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
-            Ok(wanted) if !wanted.is_empty() => {
+        let adapter = match sel.name.clone() {
+            Some(wanted) if !wanted.is_empty() => {
                 let found: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
                 adapters
                     .into_iter()
@@ -148,7 +175,7 @@ impl GpuContext {
                     .ok_or(GpuError::NoMatchingAdapter { wanted, found })?
             }
             _ => pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-                power_preference: wgpu::PowerPreference::from_env().unwrap_or_default(),
+                power_preference: sel.power_preference,
                 compatible_surface: None,
                 force_fallback_adapter: false,
                 ..Default::default()
@@ -188,9 +215,17 @@ impl GpuContext {
         let sink = Arc::clone(&lost);
         device.set_device_lost_callback(move |reason, message| {
             if let Ok(mut slot) = sink.lock() {
-                *slot = Some(format!("{reason:?}: {message}"));
+                slot.get_or_insert(format!("{reason:?}: {message}"));
             }
         });
+        // wgpu's default handler panics on any error outside an error scope; record it
+        // instead, so that the next `check_lost` returns it as a typed error.
+        let uncaptured = Arc::clone(&lost);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            if let Ok(mut slot) = uncaptured.lock() {
+                slot.get_or_insert(format!("uncaptured GPU error: {e}"));
+            }
+        }));
         Ok(Self {
             instance,
             adapter,
@@ -313,7 +348,8 @@ impl GpuContext {
         Ok(r)
     }
 
-    /// [`GpuError::DeviceLost`] if the device-lost callback fired.
+    /// [`GpuError::DeviceLost`] if the device-lost callback fired or wgpu reported an error
+    /// outside an error scope (after which the device's state cannot be trusted).
     pub fn check_lost(&self) -> Result<(), GpuError> {
         match self.lost.lock() {
             Ok(slot) => match slot.as_ref() {
