@@ -185,7 +185,8 @@ fn boundary_d(
 // One colour pass (P.color) over the interior: FLD Eqs 34, 35, 33 (D), 32 (phi'), 36 (SOR,
 // projected onto phi >= 0) and 37 (residual before the update). Writes the workgroup's sum
 // of squared residuals to `partials`.
-@compute @workgroup_size(64, 4, 1)
+// 32 packed voxels of a row (128 contiguous bytes per field) by 8 rows; 256 threads.
+@compute @workgroup_size(32, 8, 1)
 fn sweep(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,

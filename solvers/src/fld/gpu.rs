@@ -25,8 +25,8 @@ use wgpu::util::DeviceExt;
 pub const SHADER: &str = include_str!("fld.wgsl");
 
 /// Threads per workgroup of `sweep` along x (packed m) and y (j), as in `fld.wgsl`.
-const WG_X: u32 = 64;
-const WG_Y: u32 = 4;
+const WG_X: u32 = 32;
+const WG_Y: u32 = 8;
 /// Threads per workgroup of `boundary_d`.
 const WG_BOUNDARY: u32 = 64;
 
