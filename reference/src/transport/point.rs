@@ -2,7 +2,7 @@
 //! with isotropic scattering: σt = 1 (lengths are optical depths), single-scattering albedo
 //! c ∈ [0, 1).
 //!
-//! # Derivation (Case & Zweifel 1967, Ch. 4 and §6.7; Case, de Hoffmann & Placzek 1953)
+//! # Derivation (Case & Zweifel 1967; Case, de Hoffmann & Placzek 1953)
 //!
 //! The plane-source Green's function (scalar flux of a unit isotropic plane source at x = 0)
 //! has the singular-eigenfunction expansion

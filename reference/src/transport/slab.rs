@@ -31,7 +31,7 @@
 //!   limit n → ∞ and makes them converge much faster for peaked phase functions (measured
 //!   below); for isotropic scattering f = 0 and it does nothing.
 //! * **Initial layer:** thickness δ = τ'/2^k ≤ 2^{−40}, exact single scattering
-//!   (Hansen & Travis 1974, Eqs 2.3–2.4 in this convention):
+//!   (as in Hansen & Travis 1974, written in this convention):
 //!   `ρ_R = c p0(−μ, μ0) (1 − e^{−δ(1/μ + 1/μ0)}) / (4(μ + μ0))`,
 //!   `ρ_T = c p0(μ, μ0) (e^{−δ/μ} − e^{−δ/μ0}) / (4(μ − μ0))` (with `expm1` so tiny δ keeps
 //!   full relative accuracy). Its error is O(δ) relative, i.e. < 10⁻¹² after doubling.
@@ -69,7 +69,7 @@ use crate::ReferenceError;
 /// A homogeneous plane-parallel slab (σt = 1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Slab {
-    /// Optical thickness τ ≥ 0 (`f64::INFINITY`: semi-infinite).
+    /// Optical thickness 0 ≤ τ ≤ 10¹² (`f64::INFINITY`: semi-infinite).
     pub tau: f64,
     /// Single-scattering albedo c ∈ [0, 1].
     pub albedo: f64,
@@ -90,6 +90,8 @@ pub struct SlabResult {
 
 /// Largest initial-layer thickness.
 const DELTA_MAX: f64 = 1.0 / (1u64 << 50) as f64;
+/// Thicker finite slabs are refused (use `f64::INFINITY`): it bounds the doubling count.
+const MAX_FINITE_TAU: f64 = 1e12;
 /// Half-space: stop doubling once the column's total transmittance is below this.
 const HALF_SPACE_TOL: f64 = 1e-11;
 
@@ -118,13 +120,13 @@ pub(crate) struct Column {
 }
 
 impl Slab {
-    /// Validates τ ≥ 0 (or +∞), c ∈ [0, 1], g ∈ (−1, 1).
+    /// Validates 0 ≤ τ ≤ 10¹² (or τ = +∞), c ∈ [0, 1], g ∈ (−1, 1).
     pub fn new(tau: f64, albedo: f64, g: f64) -> Result<Self, ReferenceError> {
-        if tau.is_nan() || tau < 0.0 {
+        if tau.is_nan() || tau < 0.0 || (tau.is_finite() && tau > MAX_FINITE_TAU) {
             return Err(ReferenceError::BadParameter {
                 name: "tau",
                 value: tau,
-                reason: "must be ≥ 0 (or +∞ for a half-space)",
+                reason: "must be in [0, 1e12] (or +∞ for a half-space)",
             });
         }
         check_albedo(albedo, true)?;
@@ -703,6 +705,8 @@ mod tests {
     fn bad_parameters_are_errors() {
         assert!(Slab::new(-1.0, 0.5, 0.0).is_err());
         assert!(Slab::new(f64::NAN, 0.5, 0.0).is_err());
+        assert!(Slab::new(1e13, 0.5, 0.0).is_err());
+        assert!(Slab::new(f64::MAX, 0.5, 0.0).is_err());
         assert!(Slab::new(1.0, 1.1, 0.0).is_err());
         assert!(Slab::new(1.0, 0.5, 1.0).is_err());
         let s = Slab::new(1.0, 0.5, 0.0).unwrap();
