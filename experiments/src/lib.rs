@@ -12,3 +12,4 @@ pub mod convergence;
 pub mod plot;
 pub mod point_source;
 pub mod point_source_analytic;
+pub mod transport_references;
