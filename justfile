@@ -12,6 +12,19 @@ figures-quick:
 test:
     cargo test --workspace --release
 
+# Python venv with Mitsuba 3 (.venv-mitsuba/), the independent reference renderer
+mitsuba-setup:
+    bash scripts/setup-mitsuba.sh
+
+# Our path tracer vs Mitsuba 3 on both example scenes (needs mitsuba-setup; ~1.5 min on 2 cores)
+mitsuba-compare:
+    cargo run --release -p experiments --bin mitsuba_compare -- --scene scenes/cloud_directional.toml --variant scalar_rgb,llvm_ad_rgb
+    cargo run --release -p experiments --bin mitsuba_compare -- --scene scenes/emissive_sphere.toml --variant scalar_rgb,llvm_ad_rgb
+
+# GPU benchmark (wgpu; set WGPU_ADAPTER_NAME to pick an adapter); writes results/bench/diffusion_gpu.csv
+bench-gpu:
+    cargo bench -p benches --bench diffusion_gpu
+
 # Criterion benchmarks with the bandwidth probe; writes results/bench/
 bench:
     cargo bench -p benches
