@@ -6,7 +6,8 @@
 //!   isotropically scattering medium: Grosjean's approximation (FLD Eq 24), the CDA Green's
 //!   function (FLD Eq 27), FLD's transport limit (FLD Eq 29), and the Knudsen number of the
 //!   Grosjean solution (FLD Fig 3c), in physical units and in the normalised form of FLD Eq 25.
-//!
+//! * [`transport`]: exact transport references — the Case–Zweifel point-source solution,
+//!   Chandrasekhar's H-function and plane albedo, and an adding–doubling slab solver.
 //! * [`pathtracer`]: a delta-tracking Monte Carlo path tracer with batch-means error bars —
 //!   camera images and per-voxel fluence of voxel scenes, point-source shell tallies in an
 //!   unbounded medium, and slab reflectance/transmittance.
@@ -17,6 +18,7 @@
 pub mod pathtracer;
 pub mod point_source;
 pub mod quadrature;
+pub mod transport;
 
 use thiserror::Error;
 
@@ -52,5 +54,13 @@ pub enum ReferenceError {
     Unsupported {
         /// What, in words.
         what: &'static str,
+    },
+    /// An iterative solve did not converge (a bug or a parameter at the edge of the domain).
+    #[error("{what} did not converge (parameter {parameter})")]
+    NoConvergence {
+        /// What was being solved.
+        what: &'static str,
+        /// The parameter (e.g. albedo) it was solved for.
+        parameter: f64,
     },
 }
