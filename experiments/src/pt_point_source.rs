@@ -2,7 +2,9 @@
 //! spherical-shell averages of the radial density 4πr²φ(r) (FLD Section 4.1; 4πr²φ = τ²φ̃
 //! with φ̃ of FLD Eq 25), total and collided, with batch-means standard errors, against
 //! the analytic curves: the ballistic part e^{−r} (exact for any phase function) and, for
-//! isotropic scattering, Grosjean (FLD Eq 24) and the CDA Green's function (FLD Eq 27).
+//! isotropic scattering, the exact Case–Zweifel solution
+//! ([`reference::transport::point::ExactPointSource`], with z-scores), Grosjean (FLD Eq 24)
+//! and the CDA Green's function (FLD Eq 27).
 //!
 //! Writes `shells.csv` (interface columns `albedo,g,r_inner,r_outer,radial_density,
 //! radial_density_stderr,collided,collided_stderr`, then reference columns), `runs.csv`
@@ -14,6 +16,7 @@ use anyhow::{Context, Result, bail};
 use reference::pathtracer::{InfiniteMedium, PathSettings};
 use reference::point_source::{cda, grosjean};
 use reference::quadrature::simpson;
+use reference::transport::point::ExactPointSource;
 use serde::Serialize;
 use solvers::scene::Phase;
 use std::time::Instant;
@@ -72,6 +75,14 @@ pub struct ShellRow {
     pub ballistic: f64,
     /// z-score of `uncollided` against `ballistic`.
     pub z_ballistic: f64,
+    /// Exact shell average of 4πr²φ (isotropic only, else empty).
+    pub exact: Option<f64>,
+    /// Exact shell average of the collided part (isotropic only).
+    pub exact_collided: Option<f64>,
+    /// (radial_density − exact)/radial_density_stderr (isotropic only).
+    pub z: Option<f64>,
+    /// (collided − exact_collided)/collided_stderr (isotropic only).
+    pub z_collided: Option<f64>,
     /// Grosjean's shell average (FLD Eq 24; isotropic only, else empty).
     pub grosjean: Option<f64>,
     /// CDA shell average (FLD Eq 27; isotropic only, else empty).
@@ -95,6 +106,9 @@ pub struct RunRow {
     pub paths_per_second: f64,
     /// Largest relative standard error over the shells.
     pub max_rel_stderr: f64,
+    /// Largest |z| against the exact solution over total and collided shells (isotropic
+    /// only).
+    pub max_abs_z: Option<f64>,
 }
 
 /// Shell average (1/Δr)∫ f dr by Simpson's rule (f bounded on the shell).
@@ -157,13 +171,25 @@ pub fn run(args: &Args) -> Result<Vec<ShellRow>> {
                 .with_context(|| format!("shell tallies for c = {c}, g = {g}"))?;
             let seconds = t0.elapsed().as_secs_f64();
             out.timing(format!("c={c} g={g}"), seconds);
+            let exact = if g == 0.0 {
+                Some(ExactPointSource::new(c)?)
+            } else {
+                None
+            };
             let mut max_rel: f64 = 0.0;
+            let mut max_z: Option<f64> = None;
             for s in &shells {
                 let (a, b) = (s.r_inner, s.r_outer);
                 let ballistic = ((-a).exp() - (-b).exp()) / (b - a);
                 let iso = g == 0.0;
                 let rel = s.radial_density.relative_stderr();
                 max_rel = max_rel.max(rel);
+                let ex = exact.as_ref().map(|e| e.shell_average(a, b));
+                let z = ex.map(|(t, _)| s.radial_density.z(t));
+                let zc = ex.map(|(_, col)| s.collided.z(col));
+                if let (Some(z), Some(zc)) = (z, zc) {
+                    max_z = Some(max_z.unwrap_or(0.0).max(z.abs()).max(zc.abs()));
+                }
                 rows.push(ShellRow {
                     albedo: c,
                     g,
@@ -177,6 +203,10 @@ pub fn run(args: &Args) -> Result<Vec<ShellRow>> {
                     uncollided_stderr: s.uncollided.stderr,
                     ballistic,
                     z_ballistic: s.uncollided.z(ballistic),
+                    exact: ex.map(|e| e.0),
+                    exact_collided: ex.map(|e| e.1),
+                    z,
+                    z_collided: zc,
                     grosjean: iso.then(|| shell_average(|r| r * r * grosjean(r, c), a, b)),
                     cda: iso.then(|| shell_average(|r| r * r * cda(r, c), a, b)),
                     rel_stderr: rel,
@@ -189,6 +219,7 @@ pub fn run(args: &Args) -> Result<Vec<ShellRow>> {
                 seconds,
                 paths_per_second: paths as f64 / seconds,
                 max_rel_stderr: max_rel,
+                max_abs_z: max_z,
             });
             pb.inc(1);
         }
@@ -224,6 +255,14 @@ fn plots(out: &Output, albedos: &[f64], gs: &[f64], rows: &[ShellRow]) -> Result
                         .collect()
                 };
                 let label = |s: &str| if k == 0 { s.to_string() } else { String::new() };
+                if let Ok(exact) = ExactPointSource::new(c) {
+                    series.push(Series::new(
+                        label("exact transport"),
+                        rs.iter().map(|&r| (r, exact.radial_density(r))).collect(),
+                        Style::Line,
+                        7,
+                    ));
+                }
                 series.push(Series::new(
                     label("Grosjean (FLD Eq 24)"),
                     rs.iter().map(|&r| (r, r * r * grosjean(r, c))).collect(),
@@ -260,6 +299,30 @@ fn plots(out: &Output, albedos: &[f64], gs: &[f64], rows: &[ShellRow]) -> Result
                 )
             })
             .collect();
+        if g == 0.0 {
+            let z: Vec<Series> = albedos
+                .iter()
+                .enumerate()
+                .map(|(k, &c)| {
+                    Series::new(
+                        format!("c = {c}"),
+                        rows.iter()
+                            .filter(|r| r.albedo == c && r.g == g)
+                            .filter_map(|r| r.z.map(|z| (0.5 * (r.r_inner + r.r_outer), z)))
+                            .collect(),
+                        Style::Points,
+                        k,
+                    )
+                })
+                .collect();
+            plot(
+                &out.path("z_exact.png"),
+                "MC shell averages vs the exact solution: z-scores (total)",
+                &Axis::lin("r (mean free paths)"),
+                &Axis::lin("z").range(-5.0, 5.0),
+                &z,
+            )?;
+        }
         plot(
             &out.path(&format!("z_ballistic_g{g}.png")),
             &format!("Uncollided part vs exact e^(−r), g = {g}: z-scores"),

@@ -4,13 +4,20 @@
 //! transmittance T_dir = e^{−τ/μ0}, absorptance A and the energy balance R + T_d + T_dir + A
 //! (FLD Section 6.2 validates its path tracer on Chandrasekhar's slab solution).
 //!
+//! References: the adding–doubling solver ([`reference::transport::slab::Slab`]) for every
+//! case, and Chandrasekhar's plane albedo 1 − √(1 − c)H(μ0)
+//! ([`reference::transport::hfunction::plane_albedo`]) for isotropic half-spaces.
+//!
 //! Writes `slab.csv` (interface columns `tau,albedo,g,mu0,R,R_stderr,T_diffuse,
-//! T_diffuse_stderr,T_direct`, then `A`, the balance and timings) and a plot of R and T_d.
+//! T_diffuse_stderr,T_direct`, then `A`, the balance, the references with z-scores, and
+//! timings) and a plot of R and T_d.
 
 use crate::common::{CommonArgs, Output, parse_list, progress};
 use crate::plot::{Axis, Series, Style, plot};
 use anyhow::{Context, Result, bail};
 use reference::pathtracer::{PathSettings, SlabMedium};
+use reference::transport::hfunction::plane_albedo;
+use reference::transport::slab::Slab;
 use serde::Serialize;
 use solvers::scene::Phase;
 use std::time::Instant;
@@ -81,6 +88,19 @@ pub struct SlabRow {
     pub balance: f64,
     /// Its standard error.
     pub balance_stderr: f64,
+    /// Reflectance of the adding–doubling solver.
+    #[serde(rename = "R_ref")]
+    pub r_ref: f64,
+    /// Diffuse transmittance of the adding–doubling solver.
+    #[serde(rename = "T_diffuse_ref")]
+    pub t_diffuse_ref: f64,
+    /// (R − R_ref)/R_stderr.
+    pub z_r: f64,
+    /// (T_diffuse − T_diffuse_ref)/T_diffuse_stderr (0 for a half-space).
+    pub z_t: f64,
+    /// Plane albedo from the H-function (isotropic half-spaces only, else empty).
+    #[serde(rename = "R_hfunction")]
+    pub r_hfunction: Option<f64>,
     /// Paths traced.
     pub paths: u64,
     /// Wall seconds.
@@ -146,6 +166,14 @@ pub fn run(args: &Args) -> Result<Vec<SlabRow>> {
                         .simulate(mu0, &settings)
                         .with_context(|| format!("slab τ = {tau}, c = {c}, g = {g}, μ0 = {mu0}"))?;
                     let seconds = t0.elapsed().as_secs_f64();
+                    let exact = Slab::new(tau, c, g)?.solve(mu0).with_context(|| {
+                        format!("adding–doubling for τ = {tau}, c = {c}, g = {g}")
+                    })?;
+                    let r_hfunction = if tau.is_infinite() && g == 0.0 {
+                        Some(plane_albedo(c, mu0)?)
+                    } else {
+                        None
+                    };
                     out.timing(format!("tau={tau} c={c} g={g} mu0={mu0}"), seconds);
                     rows.push(SlabRow {
                         tau,
@@ -161,6 +189,11 @@ pub fn run(args: &Args) -> Result<Vec<SlabRow>> {
                         a_stderr: t.absorptance.stderr,
                         balance: t.balance.mean,
                         balance_stderr: t.balance.stderr,
+                        r_ref: exact.reflectance,
+                        t_diffuse_ref: exact.transmittance_diffuse,
+                        z_r: t.reflectance.z(exact.reflectance),
+                        z_t: t.transmittance_diffuse.z(exact.transmittance_diffuse),
+                        r_hfunction,
                         paths,
                         seconds,
                     });
@@ -186,6 +219,12 @@ pub fn run(args: &Args) -> Result<Vec<SlabRow>> {
             series.push(Series::new(
                 format!("R, τ={tau}, g={g}"),
                 sel(&|r| r.r),
+                Style::Points,
+                color,
+            ));
+            series.push(Series::new(
+                String::new(),
+                sel(&|r| r.r_ref),
                 Style::Line,
                 color,
             ));
@@ -193,6 +232,12 @@ pub fn run(args: &Args) -> Result<Vec<SlabRow>> {
                 series.push(Series::new(
                     format!("T_d, τ={tau}, g={g}"),
                     sel(&|r| r.t_diffuse),
+                    Style::Points,
+                    color,
+                ));
+                series.push(Series::new(
+                    String::new(),
+                    sel(&|r| r.t_diffuse_ref),
                     Style::Dashed,
                     color,
                 ));

@@ -73,6 +73,18 @@ fn pt_point_source_quick_writes_its_interface_and_the_ballistic_part_is_exact() 
     let zmax = sidak_z(5, 0.0027);
     assert!(rows.iter().all(|r| r.z_ballistic.abs() < zmax), "{rows:?}");
     assert!(rows.iter().all(|r| r.collided <= r.radial_density));
+    // Isotropic rows carry the exact solution; total and collided agree with it.
+    let iso: Vec<_> = rows.iter().filter(|r| r.g == 0.0).collect();
+    let zmax = sidak_z(2 * iso.len(), 0.0027);
+    for r in &iso {
+        let (z, zc) = (r.z.unwrap(), r.z_collided.unwrap());
+        assert!(z.abs() < zmax && zc.abs() < zmax, "{r:?}");
+    }
+    assert!(
+        rows.iter()
+            .filter(|r| r.g != 0.0)
+            .all(|r| r.exact.is_none())
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -121,6 +133,9 @@ fn pt_slab_quick_writes_its_interface_and_conserves_energy() {
         if r.tau.is_infinite() {
             assert_eq!((r.t_diffuse, r.t_direct), (0.0, 0.0));
         }
+        // Against the adding–doubling reference (R and T_d of every row).
+        assert!(r.z_r.abs() < sidak_z(2 * rows.len(), 0.0027), "{r:?}");
+        assert!(r.z_t.abs() < sidak_z(2 * rows.len(), 0.0027), "{r:?}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

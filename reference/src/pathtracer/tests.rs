@@ -590,3 +590,105 @@ fn bad_inputs_are_typed_errors() {
     assert!(slab.simulate(0.0, &PathSettings::new(100, 0)).is_err());
     assert!(slab.simulate(0.5, &PathSettings::new(10, 0)).is_err());
 }
+
+/// Acceptance (CI size): shell averages of 4πr²φ around a point source, isotropic
+/// scattering, c ∈ {0.3, 0.7, 0.9, 0.99}, total and collided, against the exact
+/// Case–Zweifel solution ([`crate::transport::point::ExactPointSource`]), every shell within
+/// a Šidák 3σ-family band. The same tallies are many standard errors away from Grosjean's
+/// approximation (FLD Eq 24), so the check can tell transport from a good approximation.
+#[test]
+fn point_source_shells_match_the_exact_solution() {
+    use crate::transport::point::ExactPointSource;
+    let edges = [0.0, 0.1, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0];
+    let albedos = [0.3, 0.7, 0.9, 0.99];
+    let mut checks = Vec::new();
+    let mut z_grosjean: f64 = 0.0;
+    for (k, &c) in albedos.iter().enumerate() {
+        let exact = ExactPointSource::new(c).unwrap();
+        let shells = InfiniteMedium::new(c, Phase::Isotropic)
+            .unwrap()
+            .shells(&edges, &PathSettings::new(100_000, 20 + k as u64))
+            .unwrap();
+        for s in &shells {
+            let (total, collided) = exact.shell_average(s.r_inner, s.r_outer);
+            checks.push((c, s.r_inner, s.radial_density, total));
+            checks.push((c, s.r_inner, s.collided, collided));
+            let g = simpson(
+                |r| r * r * crate::point_source::grosjean(r, c),
+                s.r_inner,
+                s.r_outer,
+                2000,
+            ) / (s.r_outer - s.r_inner);
+            z_grosjean = z_grosjean.max(s.radial_density.z(g).abs());
+        }
+    }
+    let zmax = sidak_z(checks.len(), FAMILY);
+    for (c, r, e, exact) in &checks {
+        assert!(
+            e.z(*exact).abs() < zmax,
+            "c={c} shell at r={r}: {e:?} vs exact {exact} (z = {:.2})",
+            e.z(*exact)
+        );
+    }
+    assert!(
+        z_grosjean > 3.0 * zmax,
+        "Grosjean is only {z_grosjean} standard errors away"
+    );
+}
+
+/// Acceptance (CI size): slab R and T_d for c ∈ {0.5, 0.9, 0.99}, g ∈ {0, 0.5, 0.9},
+/// τ ∈ {1, ∞}, μ0 = 0.6, against the adding–doubling solver
+/// ([`crate::transport::slab::Slab`]) and, for isotropic half-spaces, against Chandrasekhar's
+/// plane albedo 1 − √(1 − c)H(μ0) ([`crate::transport::hfunction::plane_albedo`]); all within
+/// a Šidák 3σ-family band.
+#[test]
+fn slab_matches_adding_doubling_and_h_function() {
+    use crate::transport::hfunction::plane_albedo;
+    use crate::transport::slab::Slab;
+    let mu0 = 0.6;
+    let mut checks = Vec::new();
+    let mut seed = 40;
+    for tau in [1.0, f64::INFINITY] {
+        for g in [0.0, 0.5, 0.9] {
+            for c in [0.5, 0.9, 0.99] {
+                let phase = if g == 0.0 {
+                    Phase::Isotropic
+                } else {
+                    Phase::HenyeyGreenstein { g }
+                };
+                seed += 1;
+                let mc = SlabMedium::new(tau, c, phase)
+                    .unwrap()
+                    .simulate(mu0, &PathSettings::new(60_000, seed))
+                    .unwrap();
+                let exact = Slab::new(tau, c, g).unwrap().solve(mu0).unwrap();
+                assert!((exact.transmittance_direct - mc.transmittance_direct).abs() < 1e-15);
+                checks.push((tau, g, c, "R", mc.reflectance, exact.reflectance));
+                if tau.is_finite() {
+                    checks.push((
+                        tau,
+                        g,
+                        c,
+                        "T_d",
+                        mc.transmittance_diffuse,
+                        exact.transmittance_diffuse,
+                    ));
+                } else {
+                    assert_eq!(mc.transmittance_diffuse.mean, 0.0);
+                    if g == 0.0 {
+                        let h = plane_albedo(c, mu0).unwrap();
+                        checks.push((tau, g, c, "R (H-function)", mc.reflectance, h));
+                    }
+                }
+            }
+        }
+    }
+    let zmax = sidak_z(checks.len(), FAMILY);
+    for (tau, g, c, what, e, exact) in &checks {
+        assert!(
+            e.z(*exact).abs() < zmax,
+            "τ={tau} g={g} c={c} {what}: {e:?} vs {exact} (z = {:.2})",
+            e.z(*exact)
+        );
+    }
+}
