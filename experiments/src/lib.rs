@@ -13,4 +13,5 @@ pub mod plot;
 pub mod point_source;
 pub mod point_source_analytic;
 pub mod pt_point_source;
+pub mod pt_render;
 pub mod pt_slab;

@@ -1,10 +1,10 @@
 //! CSV interfaces, flag errors and headline claims of the path-tracer experiments
-//! (`pt_point_source`, `pt_slab`) on CI-sized runs.
+//! (`pt_point_source`, `pt_slab`, `pt_render`) on CI-sized runs.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use clap::Parser;
-use experiments::{pt_point_source, pt_slab};
+use experiments::{pt_point_source, pt_render, pt_slab};
 use reference::pathtracer::estimators::sidak_z;
 use std::path::{Path, PathBuf};
 
@@ -178,4 +178,45 @@ fn pt_bad_flags_are_errors_not_panics() {
     assert!(slab(&["--albedo", "1.2"]).is_err());
     let _ = std::fs::remove_dir_all(tmp("ptps-bad"));
     let _ = std::fs::remove_dir_all(tmp("ptslab-bad"));
+}
+
+#[test]
+fn pt_render_quick_writes_timings_and_an_image() {
+    let dir = tmp("ptrender");
+    let args = pt_render::Args::parse_from([
+        "pt_render",
+        "--quick",
+        "--no-progress",
+        "--res",
+        "8",
+        "--spp",
+        "16",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    let rows = pt_render::run(&args).unwrap();
+    assert_leading_columns(
+        &dir.join("timing.csv"),
+        &[
+            "majorant",
+            "interpolation",
+            "n",
+            "res",
+            "spp",
+            "paths",
+            "seconds",
+            "paths_per_second",
+        ],
+    );
+    assert_leading_columns(&dir.join("image.csv"), &["x", "y", "mean", "stderr"]);
+    assert!(dir.join("image.png").is_file());
+    assert_eq!(rows.len(), 2);
+    assert!(
+        rows.iter()
+            .all(|r| r.paths == 8 * 8 * 16 && r.mean_radiance > 0.0)
+    );
+    let mut bad = args.clone();
+    bad.interpolation = "cubic".into();
+    assert!(pt_render::run(&bad).is_err());
+    let _ = std::fs::remove_dir_all(&dir);
 }
