@@ -234,54 +234,55 @@ pub fn run(args: &Args) -> Result<Vec<ShellRow>> {
 
 fn plots(out: &Output, albedos: &[f64], gs: &[f64], rows: &[ShellRow]) -> Result<()> {
     for &g in gs {
+        // Curves first (exact solid, Grosjean dashed, both in the albedo's colour; CDA grey),
+        // then the Monte Carlo shell averages on top.
         let mut series = Vec::new();
+        let mut points = Vec::new();
         for (k, &c) in albedos.iter().enumerate() {
             let sel: Vec<&ShellRow> = rows.iter().filter(|r| r.albedo == c && r.g == g).collect();
             let mid = |r: &ShellRow| 0.5 * (r.r_inner + r.r_outer);
-            series.push(Series::new(
+            points.push(Series::new(
                 format!("MC c = {c}"),
                 sel.iter().map(|r| (mid(r), r.radial_density)).collect(),
                 Style::Points,
                 k,
             ));
             if g == 0.0 {
-                let rs: Vec<f64> = {
-                    let (lo, hi) = (
-                        sel.first().map_or(0.0, |r| r.r_inner),
-                        sel.last().map_or(1.0, |r| r.r_outer),
-                    );
-                    (0..200)
-                        .map(|i| lo.max(1e-3) + (hi - lo.max(1e-3)) * i as f64 / 199.0)
-                        .collect()
-                };
+                let (lo, hi) = (
+                    sel.first().map_or(0.0, |r| r.r_inner).max(1e-3),
+                    sel.last().map_or(1.0, |r| r.r_outer),
+                );
+                let rs: Vec<f64> = (0..200)
+                    .map(|i| lo + (hi - lo) * i as f64 / 199.0)
+                    .collect();
                 let label = |s: &str| if k == 0 { s.to_string() } else { String::new() };
-                if let Ok(exact) = ExactPointSource::new(c) {
-                    series.push(Series::new(
-                        label("exact transport"),
-                        rs.iter().map(|&r| (r, exact.radial_density(r))).collect(),
-                        Style::Line,
-                        7,
-                    ));
-                }
+                let exact = ExactPointSource::new(c)?;
                 series.push(Series::new(
-                    label("Grosjean (FLD Eq 24)"),
+                    label("exact transport (solid)"),
+                    rs.iter().map(|&r| (r, exact.radial_density(r))).collect(),
+                    Style::Line,
+                    k,
+                ));
+                series.push(Series::new(
+                    label("Grosjean, FLD Eq 24 (dashed)"),
                     rs.iter().map(|&r| (r, r * r * grosjean(r, c))).collect(),
                     Style::Dashed,
                     k,
                 ));
                 series.push(Series::new(
-                    label("CDA (FLD Eq 27)"),
+                    label("CDA, FLD Eq 27 (grey)"),
                     rs.iter().map(|&r| (r, r * r * cda(r, c))).collect(),
                     Style::Line,
-                    k,
+                    7,
                 ));
             }
         }
+        series.extend(points);
         plot(
             &out.path(&format!("radial_density_g{g}.png")),
             &format!("Point source, σt = 1, g = {g}: shell averages of 4πr²φ"),
             &Axis::lin("r (mean free paths)"),
-            &Axis::log("4πr²φ (shell average)"),
+            &Axis::log("4πr²φ (shell average)").range(0.01, 20.0),
             &series,
         )?;
         let z: Vec<Series> = albedos

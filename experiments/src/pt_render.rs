@@ -76,6 +76,10 @@ pub struct TimingRow {
     pub seconds: f64,
     /// Paths per second (all threads).
     pub paths_per_second: f64,
+    /// Process CPU seconds (user + system) of the render; NaN where /proc is unavailable.
+    pub cpu_seconds: f64,
+    /// Paths per CPU second: throughput per core, robust to a busy machine.
+    pub paths_per_cpu_second: f64,
     /// Rayon threads.
     pub threads: usize,
     /// Mean over pixels of the radiance.
@@ -170,9 +174,10 @@ pub fn run(args: &Args) -> Result<Vec<TimingRow>> {
             interpolation,
             majorant_block: block,
         };
-        let t0 = Instant::now();
+        let (t0, c0) = (Instant::now(), cpu_seconds());
         let img = render_image_with(&scene, &settings, &opts)?;
         let seconds = t0.elapsed().as_secs_f64();
+        let cpu = cpu_seconds() - c0;
         out.timing(format!("render {name}"), seconds);
         let paths = (res * res) as u64 * spp as u64;
         let lit: Vec<(f64, f64)> = img
@@ -191,6 +196,8 @@ pub fn run(args: &Args) -> Result<Vec<TimingRow>> {
             paths,
             seconds,
             paths_per_second: paths as f64 / seconds,
+            cpu_seconds: cpu,
+            paths_per_cpu_second: paths as f64 / cpu,
             threads: rayon::current_num_threads(),
             mean_radiance: img.mean.iter().sum::<f64>() / img.mean.len() as f64,
             mean_rel_stderr: lit.iter().map(|(m, e)| e / m).sum::<f64>() / lit.len().max(1) as f64,
@@ -215,6 +222,22 @@ pub fn run(args: &Args) -> Result<Vec<TimingRow>> {
     }
     out.finish()?;
     Ok(rows)
+}
+
+/// User + system CPU time of this process from `/proc/self/stat` (fields 14 and 15, in
+/// USER_HZ = 100 ticks per second, the fixed Linux ABI value); NaN if unreadable.
+fn cpu_seconds() -> f64 {
+    std::fs::read_to_string("/proc/self/stat")
+        .ok()
+        .and_then(|s| {
+            // Fields after the parenthesised command name, which may contain spaces.
+            let rest = s.rsplit_once(')')?.1;
+            let f: Vec<&str> = rest.split_whitespace().collect();
+            let utime: f64 = f.get(11)?.parse().ok()?;
+            let stime: f64 = f.get(12)?.parse().ok()?;
+            Some((utime + stime) / 100.0)
+        })
+        .unwrap_or(f64::NAN)
 }
 
 /// Grey-scale PNG, gamma 2.2, white at the 99th percentile of the radiance.

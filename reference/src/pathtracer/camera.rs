@@ -117,7 +117,10 @@ impl CameraRays {
 }
 
 /// Renders `scene` through `scene.camera` with the project's conventions (nearest voxel
-/// lookups, majorant blocks of 8³).
+/// lookups, majorant blocks of 8³). Samples and seed come from `settings`
+/// (`scene.sampler` is not consulted). Fails with [`ReferenceError::NoCamera`] without a
+/// camera, [`ReferenceError::TooFewBatches`] below 16 batches, and
+/// [`ReferenceError::Scene`] for an invalid scene.
 pub fn render_image(scene: &Scene, settings: &RenderSettings) -> Result<Image, ReferenceError> {
     render_image_with(scene, settings, &TraceOptions::default())
 }
