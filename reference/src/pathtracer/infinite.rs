@@ -12,6 +12,14 @@
 //! implicit capture with Russian roulette, whose paths are about 3× longer). The first
 //! flight is the *uncollided* (ballistic) part, everything after the first collision
 //! *collided*.
+//!
+//! **Measured** (`results/pt_point_source`, 10⁷ paths per albedo, 32 batches, seed 1,
+//! 13 shells to r = 5): against the exact solution ([`crate::transport::point`]) the largest
+//! relative standard error is 0.24 % (c = 0.3, outer shell); 100 of 104 z-scores (total and
+//! collided) are within 3, the other four lie in two correlated clusters (c = 0.3,
+//! r ∈ [0.05, 0.35]: z = −4.28, −3.35; c = 0.99, r ∈ [3, 5]: z = −3.39, −3.37). Independent
+//! reruns of exactly those shells show no bias: c = 0.3 with 2·10⁸ paths (relative stderr
+//! 2.3·10⁻⁵) |z| ≤ 0.79, c = 0.99 with 10⁸ paths (relative stderr 1.0·10⁻⁴) |z| ≤ 1.66.
 
 use super::estimators::{Estimate, check_batches, run_paths};
 use super::fluence::PathSettings;

@@ -1,6 +1,6 @@
 //! A Woodcock-tracking (delta-tracking) Monte Carlo path tracer: the ground truth the grid
 //! methods are measured against (FLD Section 6.2 uses "the standard Woodcock tracking
-//! method [RSK06] … validated using Chandrasekhar's analytical solution for multiple
+//! method \[RSK06\] … validated using Chandrasekhar's analytical solution for multiple
 //! scattering in a slab geometry"; we validate against the exact point-source and slab
 //! solutions of [`crate::transport`] when present, and analytic limits otherwise).
 //!
@@ -11,7 +11,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`camera`] | images of a [`Scene`](solvers::scene::Scene): [`render_image`] |
-//! | [`fluence`] | per-voxel track-length fluence of a scene, collided and uncollided: [`fluence()`] |
+//! | [`fluence`](mod@fluence) | per-voxel track-length fluence of a scene, collided and uncollided: [`fluence()`] |
 //! | [`infinite`] | point source in an unbounded medium: shell tallies of 4πr²φ |
 //! | [`slab`] | plane-parallel slab: R, T_d, T_dir, A |
 //! | [`tracking`] | majorant grid, delta tracking, ratio tracking |

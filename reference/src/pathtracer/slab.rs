@@ -13,6 +13,12 @@
 //! point-source shells, where it measured more efficient than implicit capture at high c).
 //! Particles that cross z = 0 / z = τ score 1 to R / T_d. Flights leaving the slab before
 //! any collision are the direct beam and score nothing (T_dir is known exactly).
+//!
+//! **Measured** (`results/pt_slab`, 4·10⁶ paths per case, 32 batches): for τ ∈ {1, ∞},
+//! c ∈ {0.5, 0.9, 0.99}, g ∈ {0, 0.5, 0.9}, μ0 ∈ {1, 0.5}, all 54 R and T_d values are within
+//! |z| ≤ 2.20 of the adding–doubling solver ([`crate::transport::slab`]), the isotropic
+//! half-space R within |z| ≤ 2.08 of the H-function plane albedo, and the energy balance
+//! within |z| ≤ 1.67.
 
 use super::estimators::{Estimate, check_batches, run_paths};
 use super::fluence::PathSettings;

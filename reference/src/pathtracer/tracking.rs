@@ -9,7 +9,7 @@
 //! drawing a random number. A single block covering the grid is the textbook global-majorant
 //! Woodcock tracker (`block ≥ max n`), which the tests compare against.
 //!
-//! **Delta tracking** (Woodcock et al. 1965; Raab, Seibert, Keller 2006, FLD's [RSK06]):
+//! **Delta tracking** (Woodcock et al. 1965; Raab, Seibert, Keller 2006, FLD's \[RSK06\]):
 //! tentative collisions are drawn from the homogeneous majorant process; each is real with
 //! probability σt(x)/μ̄. Across a block boundary the remaining exponential optical depth
 //! carries over (memorylessness), so one exponential variate is used per tentative collision.
