@@ -1,7 +1,7 @@
 //! Chandrasekhar's H-function for isotropic scattering and the plane albedo of a semi-infinite
 //! medium.
 //!
-//! # Definitions (Chandrasekhar, *Radiative Transfer*, 1950, Ch. V §§ 34–39)
+//! # Definitions (Chandrasekhar, *Radiative Transfer*, 1950)
 //!
 //! For isotropic scattering with single-scattering albedo c (characteristic function
 //! Ψ = c/2) H(μ) is the solution of
@@ -27,8 +27,8 @@
 //! `ln H = −(μ/π)∫_0^{π/2} ln(1 − cθ cot θ)/(cos²θ + μ² sin²θ) dθ`.
 //!
 //! The diffuse reflectance (plane albedo) of a semi-infinite medium under collimated
-//! incidence at cosine μ0 is `R(μ0) = 1 − √(1 − c) H(μ0)` (Chandrasekhar Ch. V; van de Hulst
-//! 1980, Ch. 8): the flux integral `2∫_0^1 μ ρ(μ, μ0) dμ` of the reflection function
+//! incidence at cosine μ0 is `R(μ0) = 1 − √(1 − c) H(μ0)` (Chandrasekhar 1950; van de Hulst
+//! 1980): the flux integral `2∫_0^1 μ ρ(μ, μ0) dμ` of the reflection function
 //! `ρ = c H(μ)H(μ0)/(4(μ + μ0))`, reduced with (H1) and the α0 identity.
 //!
 //! # Two independent computations
@@ -260,14 +260,109 @@ impl HFunction {
 mod tests {
     use super::*;
 
+    const ALBEDOS: [f64; 6] = [0.1, 0.5, 0.9, 0.99, 0.999999, 1.0];
+
+    /// μ grid: log-spaced down to 10⁻¹² plus a uniform grid on [0, 1].
+    fn mus() -> Vec<f64> {
+        let mut v: Vec<f64> = (0..40)
+            .map(|i| 10f64.powf(-12.0 + 12.0 * i as f64 / 40.0))
+            .collect();
+        v.extend((0..=100).map(|i| i as f64 / 100.0));
+        v
+    }
+
+    /// The nonlinear integral equation (Nyström) and the closed-form integral agree.
     #[test]
-    fn methods_agree_quick() {
-        for c in [0.5, 0.999999] {
+    fn nystrom_agrees_with_integral_representation() {
+        let mut worst: f64 = 0.0;
+        for c in ALBEDOS {
             let hf = HFunction::new(c).unwrap();
-            for mu in [0.0, 1e-6, 0.3, 1.0] {
+            for mu in mus() {
                 let (a, b) = (hf.eval(mu).unwrap(), h_function(c, mu).unwrap());
-                assert!((a - b).abs() < 1e-12 * b, "c={c} μ={mu}: {a} vs {b}");
+                let rel = (a / b - 1.0).abs();
+                worst = worst.max(rel);
+                assert!(rel < 1e-13, "c={c} μ={mu}: {a} vs {b}");
             }
         }
+        eprintln!("Nyström vs integral representation: max relative difference {worst:.2e}");
+    }
+
+    /// Halving the steps changes neither computation beyond rounding.
+    #[test]
+    fn both_computations_are_converged() {
+        let (mut wz, mut wx): (f64, f64) = (0.0, 0.0);
+        for c in [0.5, 0.999999, 1.0] {
+            let coarse = HFunction::with_step(c, 2.0 * X_STEP).unwrap();
+            let fine = HFunction::new(c).unwrap();
+            for mu in mus() {
+                let b = h_integral(c, mu, Z_STEP);
+                wz = wz.max((h_integral(c, mu, Z_STEP / 2.0) / b - 1.0).abs());
+                wx = wx.max((coarse.eval(mu).unwrap() / fine.eval(mu).unwrap() - 1.0).abs());
+            }
+        }
+        eprintln!("step halving: integral {wz:.1e}, Nyström {wx:.1e}");
+        assert!(wz < 5e-15 && wx < 2e-14, "{wz} {wx}");
+    }
+
+    /// Moment identities (Chandrasekhar 1950): α0 = (2/c)(1 − √(1 − c)) and, from the
+    /// large-z expansion of H(z)H(−z) = 1/T, √(1 − c) α2 + (c/4) α1² = 1/3; conservative case
+    /// α1 = 2/√3 and H(1) = 2.90781 (Chandrasekhar's table, 5 decimals).
+    #[test]
+    fn moment_identities_and_tabulated_values() {
+        for c in ALBEDOS {
+            let hf = HFunction::new(c).unwrap();
+            let (a0, a1, a2) = (hf.moment(0), hf.moment(1), hf.moment(2));
+            let s = (1.0 - c).sqrt();
+            assert!((a0 - 2.0 / c * (1.0 - s)).abs() < 1e-14, "c={c}: α0 = {a0}");
+            assert!(
+                (s * a2 + c / 4.0 * a1 * a1 - 1.0 / 3.0).abs() < 1e-14,
+                "c={c}"
+            );
+            assert!(hf.newton_steps() <= 10);
+        }
+        let hf = HFunction::new(1.0).unwrap();
+        assert!((hf.moment(1) - 2.0 / 3f64.sqrt()).abs() < 1e-14);
+        assert!((h_function(1.0, 1.0).unwrap() - 2.90781).abs() < 5e-6);
+        // H(0) = 1, H increasing, H(∞) = 1/√(1 − c).
+        for c in [0.3, 0.9] {
+            assert_eq!(h_function(c, 0.0).unwrap(), 1.0);
+            let mut grid = mus();
+            grid.sort_by(f64::total_cmp);
+            let v: Vec<f64> = grid.iter().map(|&m| h_function(c, m).unwrap()).collect();
+            assert!(v.windows(2).all(|w| w[1] >= w[0]));
+            let inf = 1.0 / (1.0 - c).sqrt();
+            assert!((h_function(c, 1e12).unwrap() / inf - 1.0).abs() < 1e-10);
+        }
+    }
+
+    #[test]
+    fn plane_albedo_limits() {
+        for mu0 in [0.0, 0.3, 1.0] {
+            assert_eq!(plane_albedo(0.0, mu0).unwrap(), 0.0);
+            assert_eq!(plane_albedo(1.0, mu0).unwrap(), 1.0);
+            let hf = HFunction::new(0.7).unwrap();
+            let a = plane_albedo(0.7, mu0).unwrap();
+            assert!((hf.plane_albedo(mu0).unwrap() - a).abs() < 1e-14);
+        }
+        // Grazing incidence reflects more; more albedo reflects more.
+        let r: Vec<f64> = (0..=10)
+            .map(|i| plane_albedo(0.8, i as f64 / 10.0).unwrap())
+            .collect();
+        assert!(r.windows(2).all(|w| w[1] < w[0]));
+        assert!(plane_albedo(0.9, 0.5).unwrap() > plane_albedo(0.8, 0.5).unwrap());
+        // Grazing limit R(0) = 1 − √(1 − c).
+        assert!((plane_albedo(0.8, 0.0).unwrap() - (1.0 - 0.2f64.sqrt())).abs() < 1e-15);
+    }
+
+    #[test]
+    fn bad_parameters_are_errors() {
+        assert!(h_function(1.1, 0.5).is_err());
+        assert!(h_function(0.5, -0.1).is_err());
+        assert!(h_function(0.5, f64::NAN).is_err());
+        assert!(plane_albedo(0.5, 1.5).is_err());
+        assert!(HFunction::new(-0.1).is_err());
+        let hf = HFunction::new(0.5).unwrap();
+        assert!(hf.eval(f64::INFINITY).is_err());
+        assert!(hf.plane_albedo(1.1).is_err());
     }
 }

@@ -31,7 +31,7 @@
 //!   limit n → ∞ and makes them converge much faster for peaked phase functions (measured
 //!   below); for isotropic scattering f = 0 and it does nothing.
 //! * **Initial layer:** thickness δ = τ'/2^k ≤ 2^{−40}, exact single scattering
-//!   (Hansen & Travis 1974, Eqs 2.3–2.4 in this convention):
+//!   (as in Hansen & Travis 1974, written in this convention):
 //!   `ρ_R = c p0(−μ, μ0) (1 − e^{−δ(1/μ + 1/μ0)}) / (4(μ + μ0))`,
 //!   `ρ_T = c p0(μ, μ0) (e^{−δ/μ} − e^{−δ/μ0}) / (4(μ − μ0))` (with `expm1` so tiny δ keeps
 //!   full relative accuracy). Its error is O(δ) relative, i.e. < 10⁻¹² after doubling.
@@ -50,9 +50,18 @@
 //!
 //! # Measured accuracy (tests below)
 //!
-//! Stated in the tests and the module report: stream convergence, the half-space against
-//! [`super::hfunction::plane_albedo`], energy conservation, reciprocity and the thin-slab
-//! single-scattering limit.
+//! * Stream convergence: doubling the default streams changes R and T_d by ≤ 2.8·10⁻⁷
+//!   (worst: g = 0.95 at grazing μ0 = 0.05; ≤ 10⁻⁹ at μ0 = 1) over g ∈ {0, 0.5, 0.8, 0.9,
+//!   0.95}, τ ∈ {0.5, 4, ∞}, c ∈ {0.9, 0.999}. Default streams per hemisphere: 16 for
+//!   |g| ≤ 0.5, 32 for ≤ 0.8, 48 for ≤ 0.9, ⌈4/(1 − |g|)⌉ (≥ 64, ≤ 256) beyond.
+//! * Half-space, isotropic: |R − plane_albedo| ≤ 3.5·10⁻⁸ for c up to 0.999999, μ0 ≥ 0.05.
+//! * Energy, c = 1: |R + T_d + T_dir − 1| ≤ 7.5·10⁻¹³ for τ up to 100, g ∈ {0, ±0.5, 0.9}.
+//! * Initial layer: the O(δ) error measured by varying δ is 3·10⁻¹¹ at δ = 2⁻⁴⁰, so
+//!   ≈ 3·10⁻¹⁴ at the δ = 2⁻⁵⁰ used.
+//! * δ-M and the plain truncated kernel agree to 10⁻¹⁰ at 96 streams (g = 0.9).
+//! * Reciprocity ρ(μ, μ') = ρ(μ', μ) to 10⁻¹², thin-slab single-scattering limit to
+//!   3.5·10⁻⁵ relative at τ = 10⁻⁶ (the O(τ ln τ) second-order term), and an analog Monte
+//!   Carlo with the exact HG phase function within 4 standard errors.
 
 use super::{check_albedo, gauss_legendre, lu_solve};
 use crate::ReferenceError;
@@ -60,7 +69,7 @@ use crate::ReferenceError;
 /// A homogeneous plane-parallel slab (σt = 1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Slab {
-    /// Optical thickness τ ≥ 0 (`f64::INFINITY`: semi-infinite).
+    /// Optical thickness 0 ≤ τ ≤ 10¹² (`f64::INFINITY`: semi-infinite).
     pub tau: f64,
     /// Single-scattering albedo c ∈ [0, 1].
     pub albedo: f64,
@@ -81,6 +90,8 @@ pub struct SlabResult {
 
 /// Largest initial-layer thickness.
 const DELTA_MAX: f64 = 1.0 / (1u64 << 50) as f64;
+/// Thicker finite slabs are refused (use `f64::INFINITY`): it bounds the doubling count.
+const MAX_FINITE_TAU: f64 = 1e12;
 /// Half-space: stop doubling once the column's total transmittance is below this.
 const HALF_SPACE_TOL: f64 = 1e-11;
 
@@ -109,13 +120,13 @@ pub(crate) struct Column {
 }
 
 impl Slab {
-    /// Validates τ ≥ 0 (or +∞), c ∈ [0, 1], g ∈ (−1, 1).
+    /// Validates 0 ≤ τ ≤ 10¹² (or τ = +∞), c ∈ [0, 1], g ∈ (−1, 1).
     pub fn new(tau: f64, albedo: f64, g: f64) -> Result<Self, ReferenceError> {
-        if tau.is_nan() || tau < 0.0 {
+        if tau.is_nan() || tau < 0.0 || (tau.is_finite() && tau > MAX_FINITE_TAU) {
             return Err(ReferenceError::BadParameter {
                 name: "tau",
                 value: tau,
-                reason: "must be ≥ 0 (or +∞ for a half-space)",
+                reason: "must be in [0, 1e12] (or +∞ for a half-space)",
             });
         }
         check_albedo(albedo, true)?;
@@ -592,6 +603,90 @@ mod tests {
         eprintln!("thin slab vs single scattering: max relative deviation {worst:.2e}");
     }
 
+    /// SplitMix64: a tiny deterministic generator for the Monte Carlo check.
+    struct SplitMix(u64);
+    impl SplitMix {
+        fn next(&mut self) -> f64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^= z >> 31;
+            ((z >> 11) as f64 + 0.5) / (1u64 << 53) as f64 // (0, 1)
+        }
+    }
+
+    /// Analog Monte Carlo of the slab with the exact HG phase function (no Legendre
+    /// expansion, no δ-M): fractions of photons leaving the top (R) and the bottom after at
+    /// least one scattering (T_d).
+    fn monte_carlo(slab: &Slab, mu0: f64, photons: usize, seed: u64) -> (f64, f64) {
+        let mut rng = SplitMix(seed);
+        let g = slab.g;
+        let (mut nr, mut nt) = (0usize, 0usize);
+        for _ in 0..photons {
+            let (mut z, mut mu, mut scattered) = (0.0f64, mu0, false);
+            loop {
+                z += -rng.next().ln() * mu;
+                if z < 0.0 {
+                    nr += 1;
+                    break;
+                }
+                if z > slab.tau {
+                    if scattered {
+                        nt += 1;
+                    }
+                    break;
+                }
+                if rng.next() > slab.albedo {
+                    break;
+                }
+                scattered = true;
+                let cos_t = if g == 0.0 {
+                    2.0 * rng.next() - 1.0
+                } else {
+                    let f = (1.0 - g * g) / (1.0 - g + 2.0 * g * rng.next());
+                    ((1.0 + g * g - f * f) / (2.0 * g)).clamp(-1.0, 1.0)
+                };
+                let phi = 2.0 * std::f64::consts::PI * rng.next();
+                let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+                mu = (mu * cos_t + (1.0 - mu * mu).max(0.0).sqrt() * sin_t * phi.cos())
+                    .clamp(-1.0, 1.0);
+            }
+        }
+        (nr as f64 / photons as f64, nt as f64 / photons as f64)
+    }
+
+    /// An independent check of the finite anisotropic slab: analog Monte Carlo with the exact
+    /// HG phase function agrees within 4 standard errors (2·10⁵ photons, fixed seed).
+    #[test]
+    fn finite_slab_matches_monte_carlo() {
+        let n = 200_000;
+        for (i, (tau, c, g, mu0)) in [
+            (1.0, 0.9, 0.9, 0.5),
+            (2.0, 0.99, 0.5, 1.0),
+            (0.5, 1.0, -0.3, 0.3),
+            (3.0, 0.95, 0.8, 0.7),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let slab = Slab::new(tau, c, g).unwrap();
+            let r = slab.solve(mu0).unwrap();
+            let (rm, tm) = monte_carlo(&slab, mu0, n, 17 + i as u64);
+            for (what, det, mc) in [
+                ("R", r.reflectance, rm),
+                ("T_d", r.transmittance_diffuse, tm),
+            ] {
+                let se = (mc * (1.0 - mc) / n as f64).sqrt();
+                let z = (det - mc) / se;
+                eprintln!(
+                    "τ={tau} c={c} g={g} μ0={mu0} {what}: {det:.6} vs MC {mc:.6} ± {se:.6} ({z:+.2} σ)"
+                );
+                assert!(z.abs() < 4.0, "{what}: {det} vs {mc} ± {se}");
+            }
+        }
+    }
+
     #[test]
     fn trivial_cases() {
         let r = Slab::new(2.0, 0.0, 0.3).unwrap().solve(0.5).unwrap();
@@ -610,6 +705,8 @@ mod tests {
     fn bad_parameters_are_errors() {
         assert!(Slab::new(-1.0, 0.5, 0.0).is_err());
         assert!(Slab::new(f64::NAN, 0.5, 0.0).is_err());
+        assert!(Slab::new(1e13, 0.5, 0.0).is_err());
+        assert!(Slab::new(f64::MAX, 0.5, 0.0).is_err());
         assert!(Slab::new(1.0, 1.1, 0.0).is_err());
         assert!(Slab::new(1.0, 0.5, 1.0).is_err());
         let s = Slab::new(1.0, 0.5, 0.0).unwrap();
