@@ -12,4 +12,7 @@ pub mod convergence;
 pub mod plot;
 pub mod point_source;
 pub mod point_source_analytic;
+pub mod pt_point_source;
+pub mod pt_render;
+pub mod pt_slab;
 pub mod transport_references;

@@ -8,10 +8,14 @@
 //!   Grosjean solution (FLD Fig 3c), in physical units and in the normalised form of FLD Eq 25.
 //! * [`transport`]: exact transport references — the Case–Zweifel point-source solution,
 //!   Chandrasekhar's H-function and plane albedo, and an adding–doubling slab solver.
+//! * [`pathtracer`]: a delta-tracking Monte Carlo path tracer with batch-means error bars —
+//!   camera images and per-voxel fluence of voxel scenes, point-source shell tallies in an
+//!   unbounded medium, and slab reflectance/transmittance.
 //!
 //! Everything is `f64`.
 #![deny(missing_docs)]
 
+pub mod pathtracer;
 pub mod point_source;
 pub mod quadrature;
 pub mod transport;
@@ -30,6 +34,26 @@ pub enum ReferenceError {
         value: f64,
         /// What is allowed.
         reason: &'static str,
+    },
+    /// The scene (medium, lights, camera) is invalid.
+    #[error("invalid scene: {0}")]
+    Scene(#[from] solvers::SolverError),
+    /// An image was requested from a scene without a camera.
+    #[error("the scene has no camera; an image render needs `scene.camera`")]
+    NoCamera,
+    /// Too few batches for a batch-means standard error.
+    #[error("{batches} batches requested; batch-means standard errors need at least {min}")]
+    TooFewBatches {
+        /// Requested batches.
+        batches: u32,
+        /// The minimum.
+        min: u32,
+    },
+    /// A combination of options the estimator does not implement.
+    #[error("unsupported: {what}")]
+    Unsupported {
+        /// What, in words.
+        what: &'static str,
     },
     /// An iterative solve did not converge (a bug or a parameter at the edge of the domain).
     #[error("{what} did not converge (parameter {parameter})")]

@@ -1,0 +1,336 @@
+//! Path-traced point source in an unbounded homogeneous medium (σt = 1, unit power):
+//! spherical-shell averages of the radial density 4πr²φ(r) (FLD Section 4.1; 4πr²φ = τ²φ̃
+//! with φ̃ of FLD Eq 25), total and collided, with batch-means standard errors, against
+//! the analytic curves: the ballistic part e^{−r} (exact for any phase function) and, for
+//! isotropic scattering, the exact Case–Zweifel solution
+//! ([`reference::transport::point::ExactPointSource`], with z-scores), Grosjean (FLD Eq 24)
+//! and the CDA Green's function (FLD Eq 27).
+//!
+//! Writes `shells.csv` (interface columns `albedo,g,r_inner,r_outer,radial_density,
+//! radial_density_stderr,collided,collided_stderr`, then reference columns), `runs.csv`
+//! (paths, seconds, paths/s per albedo), and plots.
+
+use crate::common::{CommonArgs, Output, parse_list, progress};
+use crate::plot::{Axis, Series, Style, plot};
+use anyhow::{Context, Result, bail};
+use reference::pathtracer::{InfiniteMedium, PathSettings};
+use reference::point_source::{cda, grosjean};
+use reference::quadrature::simpson;
+use reference::transport::point::ExactPointSource;
+use serde::Serialize;
+use solvers::scene::Phase;
+use std::time::Instant;
+
+/// Flags of `pt_point_source`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(about = "Path-traced point source in an infinite medium: shell tallies of 4πr²φ")]
+pub struct Args {
+    /// Shared flags.
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Single-scattering albedos c ∈ [0, 1), comma-separated.
+    #[arg(long, default_value = "0.3,0.7,0.9,0.99")]
+    pub albedo: String,
+    /// Henyey–Greenstein mean cosine(s) g ∈ (−1, 1), comma-separated (0: isotropic).
+    #[arg(long, default_value = "0")]
+    pub g: String,
+    /// Shell edges r0,r1,…,rk in mean free paths (strictly increasing, r0 ≥ 0).
+    #[arg(long, default_value = "0,0.05,0.1,0.2,0.35,0.5,0.75,1,1.5,2,2.5,3,4,5")]
+    pub edges: String,
+    /// Paths per albedo (default 1e7; 2e5 with --quick).
+    #[arg(long)]
+    pub paths: Option<u64>,
+    /// Seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Batches for the standard errors (≥ 16).
+    #[arg(long, default_value_t = 32)]
+    pub batches: u32,
+}
+
+/// One shell (`shells.csv`).
+#[derive(Debug, Clone, Serialize)]
+pub struct ShellRow {
+    /// Albedo c.
+    pub albedo: f64,
+    /// HG mean cosine.
+    pub g: f64,
+    /// Inner radius.
+    pub r_inner: f64,
+    /// Outer radius.
+    pub r_outer: f64,
+    /// Shell average of 4πr²φ (total).
+    pub radial_density: f64,
+    /// Its standard error.
+    pub radial_density_stderr: f64,
+    /// Shell average of the collided part.
+    pub collided: f64,
+    /// Its standard error.
+    pub collided_stderr: f64,
+    /// Shell average of the uncollided part.
+    pub uncollided: f64,
+    /// Its standard error.
+    pub uncollided_stderr: f64,
+    /// Exact ballistic shell average (e^{−a} − e^{−b})/Δr.
+    pub ballistic: f64,
+    /// z-score of `uncollided` against `ballistic`.
+    pub z_ballistic: f64,
+    /// Exact shell average of 4πr²φ (isotropic only, else empty).
+    pub exact: Option<f64>,
+    /// Exact shell average of the collided part (isotropic only).
+    pub exact_collided: Option<f64>,
+    /// (radial_density − exact)/radial_density_stderr (isotropic only).
+    pub z: Option<f64>,
+    /// (collided − exact_collided)/collided_stderr (isotropic only).
+    pub z_collided: Option<f64>,
+    /// Grosjean's shell average (FLD Eq 24; isotropic only, else empty).
+    pub grosjean: Option<f64>,
+    /// CDA shell average (FLD Eq 27; isotropic only, else empty).
+    pub cda: Option<f64>,
+    /// radial_density_stderr / radial_density.
+    pub rel_stderr: f64,
+}
+
+/// One albedo's run (`runs.csv`).
+#[derive(Debug, Clone, Serialize)]
+pub struct RunRow {
+    /// Albedo.
+    pub albedo: f64,
+    /// HG mean cosine.
+    pub g: f64,
+    /// Paths traced.
+    pub paths: u64,
+    /// Wall seconds.
+    pub seconds: f64,
+    /// Paths per second.
+    pub paths_per_second: f64,
+    /// Largest relative standard error over the shells.
+    pub max_rel_stderr: f64,
+    /// Largest |z| against the exact solution over total and collided shells (isotropic
+    /// only).
+    pub max_abs_z: Option<f64>,
+}
+
+/// Shell average (1/Δr)∫ f dr by Simpson's rule (f bounded on the shell).
+fn shell_average(f: impl Fn(f64) -> f64, a: f64, b: f64) -> f64 {
+    simpson(f, a, b, 2000) / (b - a)
+}
+
+/// Runs the experiment; returns the shell rows.
+pub fn run(args: &Args) -> Result<Vec<ShellRow>> {
+    let albedos: Vec<f64> = parse_list("albedo", &args.albedo)?;
+    if albedos.is_empty() {
+        bail!("--albedo: no values given");
+    }
+    if let Some(a) = albedos.iter().find(|a| !(0.0..1.0).contains(*a)) {
+        bail!("--albedo: {a} is outside [0, 1)");
+    }
+    let gs: Vec<f64> = parse_list("g", &args.g)?;
+    if let Some(g) = gs.iter().find(|g| g.is_nan() || g.abs() >= 1.0) {
+        bail!("--g: {g} is outside (-1, 1)");
+    }
+    let edges: Vec<f64> = parse_list("edges", &args.edges)?;
+    let paths = args.paths.unwrap_or(if args.common.quick {
+        200_000
+    } else {
+        10_000_000
+    });
+    let mut out = Output::new(
+        "pt_point_source",
+        &args.common,
+        serde_json::json!({
+            "albedo": albedos, "g": gs, "edges": edges, "paths": paths,
+            "seed": args.seed, "batches": args.batches, "sigma_t": 1.0, "source_power": 1.0,
+        }),
+    )?;
+    let settings = PathSettings {
+        paths,
+        seed: args.seed,
+        batches: args.batches,
+        max_depth: None,
+    };
+    let mut rows = Vec::new();
+    let mut runs = Vec::new();
+    let pb = progress(
+        (albedos.len() * gs.len()) as u64,
+        &args.common,
+        "pt_point_source",
+    );
+    for &g in &gs {
+        let phase = if g == 0.0 {
+            Phase::Isotropic
+        } else {
+            Phase::HenyeyGreenstein { g }
+        };
+        for &c in &albedos {
+            pb.set_message(format!("c={c} g={g}"));
+            let medium = InfiniteMedium::new(c, phase)?;
+            let t0 = Instant::now();
+            let shells = medium
+                .shells(&edges, &settings)
+                .with_context(|| format!("shell tallies for c = {c}, g = {g}"))?;
+            let seconds = t0.elapsed().as_secs_f64();
+            out.timing(format!("c={c} g={g}"), seconds);
+            let exact = if g == 0.0 {
+                Some(ExactPointSource::new(c)?)
+            } else {
+                None
+            };
+            let mut max_rel: f64 = 0.0;
+            let mut max_z: Option<f64> = None;
+            for s in &shells {
+                let (a, b) = (s.r_inner, s.r_outer);
+                let ballistic = ((-a).exp() - (-b).exp()) / (b - a);
+                let iso = g == 0.0;
+                let rel = s.radial_density.relative_stderr();
+                max_rel = max_rel.max(rel);
+                let ex = exact.as_ref().map(|e| e.shell_average(a, b));
+                let z = ex.map(|(t, _)| s.radial_density.z(t));
+                let zc = ex.map(|(_, col)| s.collided.z(col));
+                if let (Some(z), Some(zc)) = (z, zc) {
+                    max_z = Some(max_z.unwrap_or(0.0).max(z.abs()).max(zc.abs()));
+                }
+                rows.push(ShellRow {
+                    albedo: c,
+                    g,
+                    r_inner: a,
+                    r_outer: b,
+                    radial_density: s.radial_density.mean,
+                    radial_density_stderr: s.radial_density.stderr,
+                    collided: s.collided.mean,
+                    collided_stderr: s.collided.stderr,
+                    uncollided: s.uncollided.mean,
+                    uncollided_stderr: s.uncollided.stderr,
+                    ballistic,
+                    z_ballistic: s.uncollided.z(ballistic),
+                    exact: ex.map(|e| e.0),
+                    exact_collided: ex.map(|e| e.1),
+                    z,
+                    z_collided: zc,
+                    grosjean: iso.then(|| shell_average(|r| r * r * grosjean(r, c), a, b)),
+                    cda: iso.then(|| shell_average(|r| r * r * cda(r, c), a, b)),
+                    rel_stderr: rel,
+                });
+            }
+            runs.push(RunRow {
+                albedo: c,
+                g,
+                paths,
+                seconds,
+                paths_per_second: paths as f64 / seconds,
+                max_rel_stderr: max_rel,
+                max_abs_z: max_z,
+            });
+            pb.inc(1);
+        }
+    }
+    pb.finish_and_clear();
+    out.csv("shells.csv", &rows)?;
+    out.csv("runs.csv", &runs)?;
+    plots(&out, &albedos, &gs, &rows)?;
+    out.finish()?;
+    Ok(rows)
+}
+
+fn plots(out: &Output, albedos: &[f64], gs: &[f64], rows: &[ShellRow]) -> Result<()> {
+    for &g in gs {
+        // Curves first (exact solid, Grosjean dashed, both in the albedo's colour; CDA grey),
+        // then the Monte Carlo shell averages on top.
+        let mut series = Vec::new();
+        let mut points = Vec::new();
+        for (k, &c) in albedos.iter().enumerate() {
+            let sel: Vec<&ShellRow> = rows.iter().filter(|r| r.albedo == c && r.g == g).collect();
+            let mid = |r: &ShellRow| 0.5 * (r.r_inner + r.r_outer);
+            points.push(Series::new(
+                format!("MC c = {c}"),
+                sel.iter().map(|r| (mid(r), r.radial_density)).collect(),
+                Style::Points,
+                k,
+            ));
+            if g == 0.0 {
+                let (lo, hi) = (
+                    sel.first().map_or(0.0, |r| r.r_inner).max(1e-3),
+                    sel.last().map_or(1.0, |r| r.r_outer),
+                );
+                let rs: Vec<f64> = (0..200)
+                    .map(|i| lo + (hi - lo) * i as f64 / 199.0)
+                    .collect();
+                let label = |s: &str| if k == 0 { s.to_string() } else { String::new() };
+                let exact = ExactPointSource::new(c)?;
+                series.push(Series::new(
+                    label("exact transport (solid)"),
+                    rs.iter().map(|&r| (r, exact.radial_density(r))).collect(),
+                    Style::Line,
+                    k,
+                ));
+                series.push(Series::new(
+                    label("Grosjean, FLD Eq 24 (dashed)"),
+                    rs.iter().map(|&r| (r, r * r * grosjean(r, c))).collect(),
+                    Style::Dashed,
+                    k,
+                ));
+                series.push(Series::new(
+                    label("CDA, FLD Eq 27 (grey)"),
+                    rs.iter().map(|&r| (r, r * r * cda(r, c))).collect(),
+                    Style::Line,
+                    7,
+                ));
+            }
+        }
+        series.extend(points);
+        plot(
+            &out.path(&format!("radial_density_g{g}.png")),
+            &format!("Point source, σt = 1, g = {g}: shell averages of 4πr²φ"),
+            &Axis::lin("r (mean free paths)"),
+            &Axis::log("4πr²φ (shell average)").range(0.01, 20.0),
+            &series,
+        )?;
+        let z: Vec<Series> = albedos
+            .iter()
+            .enumerate()
+            .map(|(k, &c)| {
+                Series::new(
+                    format!("c = {c}"),
+                    rows.iter()
+                        .filter(|r| r.albedo == c && r.g == g)
+                        .map(|r| (0.5 * (r.r_inner + r.r_outer), r.z_ballistic))
+                        .collect(),
+                    Style::Points,
+                    k,
+                )
+            })
+            .collect();
+        if g == 0.0 {
+            let z: Vec<Series> = albedos
+                .iter()
+                .enumerate()
+                .map(|(k, &c)| {
+                    Series::new(
+                        format!("c = {c}"),
+                        rows.iter()
+                            .filter(|r| r.albedo == c && r.g == g)
+                            .filter_map(|r| r.z.map(|z| (0.5 * (r.r_inner + r.r_outer), z)))
+                            .collect(),
+                        Style::Points,
+                        k,
+                    )
+                })
+                .collect();
+            plot(
+                &out.path("z_exact.png"),
+                "MC shell averages vs the exact solution: z-scores (total)",
+                &Axis::lin("r (mean free paths)"),
+                &Axis::lin("z").range(-5.0, 5.0),
+                &z,
+            )?;
+        }
+        plot(
+            &out.path(&format!("z_ballistic_g{g}.png")),
+            &format!("Uncollided part vs exact e^(−r), g = {g}: z-scores"),
+            &Axis::lin("r (mean free paths)"),
+            &Axis::lin("z").range(-5.0, 5.0),
+            &z,
+        )?;
+    }
+    Ok(())
+}

@@ -1,0 +1,259 @@
+//! Path-traced plane-parallel slab (σt = 1, optical thickness τ, finite or semi-infinite),
+//! albedo c, isotropic or Henyey–Greenstein scattering, collimated incidence at cosine μ0:
+//! reflectance R, diffuse transmittance T_d (with batch-means standard errors), direct
+//! transmittance T_dir = e^{−τ/μ0}, absorptance A and the energy balance R + T_d + T_dir + A
+//! (FLD Section 6.2 validates its path tracer on Chandrasekhar's slab solution).
+//!
+//! References: the adding–doubling solver ([`reference::transport::slab::Slab`]) for every
+//! case, and Chandrasekhar's plane albedo 1 − √(1 − c)H(μ0)
+//! ([`reference::transport::hfunction::plane_albedo`]) for isotropic half-spaces.
+//!
+//! Writes `slab.csv` (interface columns `tau,albedo,g,mu0,R,R_stderr,T_diffuse,
+//! T_diffuse_stderr,T_direct`, then `A`, the balance, the references with z-scores, and
+//! timings) and a plot of R and T_d.
+
+use crate::common::{CommonArgs, Output, parse_list, progress};
+use crate::plot::{Axis, Series, Style, plot};
+use anyhow::{Context, Result, bail};
+use reference::pathtracer::{PathSettings, SlabMedium};
+use reference::transport::hfunction::plane_albedo;
+use reference::transport::slab::Slab;
+use serde::Serialize;
+use solvers::scene::Phase;
+use std::time::Instant;
+
+/// Flags of `pt_slab`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(about = "Path-traced slab: reflectance and transmittance under collimated incidence")]
+pub struct Args {
+    /// Shared flags.
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Optical thicknesses τ (`inf` for a semi-infinite medium), comma-separated.
+    #[arg(long, default_value = "1,inf")]
+    pub tau: String,
+    /// Albedos c, comma-separated (c < 1 when τ = inf).
+    #[arg(long, default_value = "0.5,0.9,0.99")]
+    pub albedo: String,
+    /// Henyey–Greenstein mean cosines (0: isotropic), comma-separated.
+    #[arg(long, default_value = "0,0.5,0.9")]
+    pub g: String,
+    /// Incidence cosines μ0 ∈ (0, 1], comma-separated.
+    #[arg(long, default_value = "1,0.5")]
+    pub mu0: String,
+    /// Paths per case (default 4e6; 1e5 with --quick).
+    #[arg(long)]
+    pub paths: Option<u64>,
+    /// Seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Batches for the standard errors (≥ 16).
+    #[arg(long, default_value_t = 32)]
+    pub batches: u32,
+}
+
+/// One case (`slab.csv`).
+#[derive(Debug, Clone, Serialize)]
+pub struct SlabRow {
+    /// Optical thickness (inf for semi-infinite).
+    pub tau: f64,
+    /// Albedo.
+    pub albedo: f64,
+    /// HG mean cosine.
+    pub g: f64,
+    /// Incidence cosine.
+    pub mu0: f64,
+    /// Reflectance.
+    #[serde(rename = "R")]
+    pub r: f64,
+    /// Its standard error.
+    #[serde(rename = "R_stderr")]
+    pub r_stderr: f64,
+    /// Diffuse transmittance.
+    #[serde(rename = "T_diffuse")]
+    pub t_diffuse: f64,
+    /// Its standard error.
+    #[serde(rename = "T_diffuse_stderr")]
+    pub t_diffuse_stderr: f64,
+    /// Direct transmittance e^{−τ/μ0} (exact).
+    #[serde(rename = "T_direct")]
+    pub t_direct: f64,
+    /// Absorptance.
+    #[serde(rename = "A")]
+    pub a: f64,
+    /// Its standard error.
+    #[serde(rename = "A_stderr")]
+    pub a_stderr: f64,
+    /// R + T_d + T_dir + A (1 up to noise).
+    pub balance: f64,
+    /// Its standard error.
+    pub balance_stderr: f64,
+    /// Reflectance of the adding–doubling solver.
+    #[serde(rename = "R_ref")]
+    pub r_ref: f64,
+    /// Diffuse transmittance of the adding–doubling solver.
+    #[serde(rename = "T_diffuse_ref")]
+    pub t_diffuse_ref: f64,
+    /// (R − R_ref)/R_stderr.
+    pub z_r: f64,
+    /// (T_diffuse − T_diffuse_ref)/T_diffuse_stderr (0 for a half-space).
+    pub z_t: f64,
+    /// Plane albedo from the H-function (isotropic half-spaces only, else empty).
+    #[serde(rename = "R_hfunction")]
+    pub r_hfunction: Option<f64>,
+    /// Paths traced.
+    pub paths: u64,
+    /// Wall seconds.
+    pub seconds: f64,
+}
+
+/// Runs the experiment; returns the rows.
+pub fn run(args: &Args) -> Result<Vec<SlabRow>> {
+    let taus: Vec<f64> = parse_list("tau", &args.tau)?;
+    let albedos: Vec<f64> = parse_list("albedo", &args.albedo)?;
+    let gs: Vec<f64> = parse_list("g", &args.g)?;
+    let mu0s: Vec<f64> = parse_list("mu0", &args.mu0)?;
+    for (flag, v) in [
+        ("tau", &taus),
+        ("albedo", &albedos),
+        ("g", &gs),
+        ("mu0", &mu0s),
+    ] {
+        if v.is_empty() {
+            bail!("--{flag}: no values given");
+        }
+    }
+    if let Some(g) = gs.iter().find(|g| g.is_nan() || g.abs() >= 1.0) {
+        bail!("--g: {g} is outside (-1, 1)");
+    }
+    let paths = args.paths.unwrap_or(if args.common.quick {
+        100_000
+    } else {
+        4_000_000
+    });
+    let mut out = Output::new(
+        "pt_slab",
+        &args.common,
+        serde_json::json!({
+            "tau": taus.iter().map(|t| t.to_string()).collect::<Vec<_>>(),
+            "albedo": albedos, "g": gs, "mu0": mu0s, "paths": paths,
+            "seed": args.seed, "batches": args.batches,
+        }),
+    )?;
+    let settings = PathSettings {
+        paths,
+        seed: args.seed,
+        batches: args.batches,
+        max_depth: None,
+    };
+    let mut rows = Vec::new();
+    let n = (taus.len() * albedos.len() * gs.len() * mu0s.len()) as u64;
+    let pb = progress(n, &args.common, "pt_slab");
+    for &tau in &taus {
+        for &g in &gs {
+            let phase = if g == 0.0 {
+                Phase::Isotropic
+            } else {
+                Phase::HenyeyGreenstein { g }
+            };
+            for &c in &albedos {
+                let slab = SlabMedium::new(tau, c, phase)
+                    .with_context(|| format!("slab τ = {tau}, c = {c}, g = {g}"))?;
+                for &mu0 in &mu0s {
+                    pb.set_message(format!("τ={tau} c={c} g={g} μ0={mu0}"));
+                    let t0 = Instant::now();
+                    let t = slab
+                        .simulate(mu0, &settings)
+                        .with_context(|| format!("slab τ = {tau}, c = {c}, g = {g}, μ0 = {mu0}"))?;
+                    let seconds = t0.elapsed().as_secs_f64();
+                    let exact = Slab::new(tau, c, g)?.solve(mu0).with_context(|| {
+                        format!("adding–doubling for τ = {tau}, c = {c}, g = {g}")
+                    })?;
+                    let r_hfunction = if tau.is_infinite() && g == 0.0 {
+                        Some(plane_albedo(c, mu0)?)
+                    } else {
+                        None
+                    };
+                    out.timing(format!("tau={tau} c={c} g={g} mu0={mu0}"), seconds);
+                    rows.push(SlabRow {
+                        tau,
+                        albedo: c,
+                        g,
+                        mu0,
+                        r: t.reflectance.mean,
+                        r_stderr: t.reflectance.stderr,
+                        t_diffuse: t.transmittance_diffuse.mean,
+                        t_diffuse_stderr: t.transmittance_diffuse.stderr,
+                        t_direct: t.transmittance_direct,
+                        a: t.absorptance.mean,
+                        a_stderr: t.absorptance.stderr,
+                        balance: t.balance.mean,
+                        balance_stderr: t.balance.stderr,
+                        r_ref: exact.reflectance,
+                        t_diffuse_ref: exact.transmittance_diffuse,
+                        z_r: t.reflectance.z(exact.reflectance),
+                        z_t: t.transmittance_diffuse.z(exact.transmittance_diffuse),
+                        r_hfunction,
+                        paths,
+                        seconds,
+                    });
+                    pb.inc(1);
+                }
+            }
+        }
+    }
+    pb.finish_and_clear();
+    out.csv("slab.csv", &rows)?;
+    // R and T_d against albedo at the first μ0, one colour per (τ, g).
+    let mu0 = mu0s[0];
+    let mut series = Vec::new();
+    for (k, &tau) in taus.iter().enumerate() {
+        for (j, &g) in gs.iter().enumerate() {
+            let sel = |f: &dyn Fn(&SlabRow) -> f64| -> Vec<(f64, f64)> {
+                rows.iter()
+                    .filter(|r| r.tau == tau && r.g == g && r.mu0 == mu0)
+                    .map(|r| (r.albedo, f(r)))
+                    .collect()
+            };
+            let color = k * gs.len() + j;
+            series.push(Series::new(
+                format!("R, τ={tau}, g={g}"),
+                sel(&|r| r.r),
+                Style::Points,
+                color,
+            ));
+            series.push(Series::new(
+                String::new(),
+                sel(&|r| r.r_ref),
+                Style::Line,
+                color,
+            ));
+            if tau.is_finite() {
+                series.push(Series::new(
+                    format!("T_d, τ={tau}, g={g}"),
+                    sel(&|r| r.t_diffuse),
+                    Style::Points,
+                    color,
+                ));
+                series.push(Series::new(
+                    String::new(),
+                    sel(&|r| r.t_diffuse_ref),
+                    Style::Dashed,
+                    color,
+                ));
+            }
+        }
+    }
+    plot(
+        &out.path("slab.png"),
+        &format!(
+            "Slab reflectance and diffuse transmittance, μ0 = {}",
+            mu0s[0]
+        ),
+        &Axis::lin("albedo c"),
+        &Axis::lin("fraction of incident power"),
+        &series,
+    )?;
+    out.finish()?;
+    Ok(rows)
+}
