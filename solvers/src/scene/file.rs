@@ -1275,6 +1275,29 @@ write = ["image", "fluence"]
     }
 
     #[test]
+    fn the_example_scenes_load() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+        let cloud = SceneFile::load(&dir.join("cloud_directional.toml")).unwrap();
+        let s = &cloud.scene;
+        assert_eq!(s.medium.grid.n, [64; 3]);
+        assert!(s.medium.emission.iter().all(|&j| j == 0.0));
+        assert!(matches!(s.lights[..], [Light::Directional { .. }]));
+        assert_eq!(s.camera.map(|c| c.resolution), Some([64, 64]));
+        let sphere = SceneFile::load(&dir.join("emissive_sphere.toml")).unwrap();
+        let s = &sphere.scene;
+        let Light::Sphere { center, radius, .. } = s.lights[0] else {
+            panic!("{:?}", s.lights);
+        };
+        // The sphere lies inside the medium's box.
+        let size = s.medium.grid.size();
+        for a in 0..3 {
+            assert!(center[a] - radius > s.medium.grid.origin[a]);
+            assert!(center[a] + radius < s.medium.grid.origin[a] + size[a]);
+        }
+        assert_eq!(s.camera.map(|c| c.resolution), Some([64, 64]));
+    }
+
+    #[test]
     fn round_trip_through_toml_and_vol_files() {
         let dir =
             std::env::temp_dir().join(format!("scatterbench-scenefile-{}", std::process::id()));
