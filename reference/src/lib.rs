@@ -7,9 +7,15 @@
 //!   function (FLD Eq 27), FLD's transport limit (FLD Eq 29), and the Knudsen number of the
 //!   Grosjean solution (FLD Fig 3c), in physical units and in the normalised form of FLD Eq 25.
 //!
+//! * [`mitsuba`]: a bridge to Mitsuba 3 (scene export, K-seed renders through its Python
+//!   package) and [`compare`]: per-pixel Welch t-tests with Šidák correction between two
+//!   Monte Carlo images.
+//!
 //! Everything is `f64`.
 #![deny(missing_docs)]
 
+pub mod compare;
+pub mod mitsuba;
 pub mod point_source;
 pub mod quadrature;
 
