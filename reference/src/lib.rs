@@ -7,6 +7,9 @@
 //!   function (FLD Eq 27), FLD's transport limit (FLD Eq 29), and the Knudsen number of the
 //!   Grosjean solution (FLD Fig 3c), in physical units and in the normalised form of FLD Eq 25.
 //!
+//! * [`pathtracer`]: a delta-tracking Monte Carlo path tracer with batch-means error bars —
+//!   camera images and per-voxel fluence of voxel scenes, point-source shell tallies in an
+//!   unbounded medium, and slab reflectance/transmittance.
 //! * [`mitsuba`]: a bridge to Mitsuba 3 (scene export, K-seed renders through its Python
 //!   package) and [`compare`]: per-pixel Welch t-tests with Šidák correction between two
 //!   Monte Carlo images.
@@ -16,6 +19,7 @@
 
 pub mod compare;
 pub mod mitsuba;
+pub mod pathtracer;
 pub mod point_source;
 pub mod quadrature;
 
@@ -33,5 +37,25 @@ pub enum ReferenceError {
         value: f64,
         /// What is allowed.
         reason: &'static str,
+    },
+    /// The scene (medium, lights, camera) is invalid.
+    #[error("invalid scene: {0}")]
+    Scene(#[from] solvers::SolverError),
+    /// An image was requested from a scene without a camera.
+    #[error("the scene has no camera; an image render needs `scene.camera`")]
+    NoCamera,
+    /// Too few batches for a batch-means standard error.
+    #[error("{batches} batches requested; batch-means standard errors need at least {min}")]
+    TooFewBatches {
+        /// Requested batches.
+        batches: u32,
+        /// The minimum.
+        min: u32,
+    },
+    /// A combination of options the estimator does not implement.
+    #[error("unsupported: {what}")]
+    Unsupported {
+        /// What, in words.
+        what: &'static str,
     },
 }

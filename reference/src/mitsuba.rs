@@ -33,7 +33,8 @@
 //! * **Film**: `hdrfilm`, RGB float32, `box` reconstruction filter (radius ½: each sample
 //!   lands in exactly the pixel that contains it, so a pixel value is the unweighted mean
 //!   over the pixel's area); `independent` sampler; `volpath` integrator with
-//!   `max_depth = −1` (unlimited, Russian roulette from depth 5) unless a depth is given.
+//!   `max_depth = −1` (unlimited, Russian roulette from depth 5) unless a depth is given
+//!   (our "at most k scatterings" is Mitsuba's `max_depth = k + 1`).
 //!   Grey inputs make the three channels equal; channel 0 is used and the largest channel
 //!   difference is recorded.
 //!
@@ -180,7 +181,9 @@ pub struct MitsubaSettings {
     pub renders: u32,
     /// Base seed; render k uses Mitsuba seed (seed · 65537 + k) mod 2³².
     pub seed: u64,
-    /// Maximum path depth (`None`: unlimited).
+    /// Most scattering events per path in *our* convention (`pathtracer::RenderSettings`:
+    /// light scattered at most k times), passed to Mitsuba as `max_depth = k + 1` (Mitsuba
+    /// counts path segments: `max_depth = 1` is emitted light only); `None`: unlimited.
     pub max_depth: Option<u32>,
     /// Keep the exported files here instead of a temporary directory that is removed.
     pub keep_dir: Option<PathBuf>,
@@ -296,7 +299,7 @@ pub fn orthographic_pixel_origin(
     out
 }
 
-/// Exports `scene` for Mitsuba: writes `sigma_t.vol` (and `albedo.vol` unless the albedo is
+/// Exports `scene` for Mitsuba (`max_depth` in Mitsuba's convention, `None` for −1): writes `sigma_t.vol` (and `albedo.vol` unless the albedo is
 /// constant) into `dir` and returns the scene dictionary (transforms as `__transform__`
 /// markers), with a `hdrfilm` of the camera's resolution and an `independent` sampler of
 /// `spp` samples.
@@ -508,7 +511,12 @@ pub fn render(
     config.probe()?;
     let work = WorkDir::new(settings.keep_dir.as_deref())?;
     let dir = &work.path;
-    let scene_dict = export_scene(scene, dir, settings.spp, settings.max_depth)?;
+    let scene_dict = export_scene(
+        scene,
+        dir,
+        settings.spp,
+        settings.max_depth.map(|k| k.saturating_add(1)),
+    )?;
     let seeds: Vec<u32> = (0..settings.renders)
         .map(|k| {
             (settings.seed.wrapping_mul(65537).wrapping_add(u64::from(k)) & 0xffff_ffff) as u32

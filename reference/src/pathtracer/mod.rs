@@ -1,0 +1,65 @@
+//! A Woodcock-tracking (delta-tracking) Monte Carlo path tracer: the ground truth the grid
+//! methods are measured against (FLD Section 6.2 uses "the standard Woodcock tracking
+//! method [RSK06] … validated using Chandrasekhar's analytical solution for multiple
+//! scattering in a slab geometry"; we validate against the exact point-source and slab
+//! solutions of [`crate::transport`] when present, and analytic limits otherwise).
+//!
+//! Every estimate carries a standard error by batch means ([`estimators`]) and is
+//! bit-identical for any number of threads (each path's random stream depends only on the
+//! seed and the path index, [`rng`]; sums are reduced in a fixed order).
+//!
+//! | module | what |
+//! |---|---|
+//! | [`camera`] | images of a [`Scene`](solvers::scene::Scene): [`render_image`] |
+//! | [`fluence`] | per-voxel track-length fluence of a scene, collided and uncollided: [`fluence()`] |
+//! | [`infinite`] | point source in an unbounded medium: shell tallies of 4πr²φ |
+//! | [`slab`] | plane-parallel slab: R, T_d, T_dir, A |
+//! | [`tracking`] | majorant grid, delta tracking, ratio tracking |
+//! | [`volume`] | nearest / trilinear lookups, DDA, exact line integrals |
+//! | [`phase`] | isotropic and Henyey–Greenstein phase functions |
+//! | [`estimators`] | batch means, Šidák thresholds, quantiles |
+//! | [`rng`] | counter-seeded PCG streams |
+//!
+//! Units: lengths in the grid's units, σt in inverse length, emission j in power per volume
+//! (an isotropic source of radiance j/4π per unit length), light powers in watts; fluence in
+//! power per area, radiance in power per area per steradian.
+
+pub mod camera;
+pub mod estimators;
+pub mod fluence;
+pub mod infinite;
+pub(crate) mod math;
+pub mod phase;
+pub mod rng;
+pub mod slab;
+pub mod tracking;
+pub mod volume;
+pub(crate) mod world;
+
+pub use camera::{Image, RenderSettings, render_image, render_image_with};
+pub use estimators::{Estimate, MIN_BATCHES};
+pub use fluence::{Field, Fluence, PathSettings, fluence, fluence_with};
+pub use infinite::{InfiniteMedium, Shell};
+pub use slab::{SlabMedium, SlabTally};
+pub use volume::Interpolation;
+
+/// How a bounded scene is traced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TraceOptions {
+    /// Reconstruction of the voxel fields (default: nearest, the project convention).
+    pub interpolation: Interpolation,
+    /// Majorant block edge in voxels (default 8; ≥ the grid size: one global majorant).
+    pub majorant_block: usize,
+}
+
+impl Default for TraceOptions {
+    fn default() -> Self {
+        Self {
+            interpolation: Interpolation::Nearest,
+            majorant_block: tracking::DEFAULT_BLOCK,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
