@@ -62,7 +62,9 @@ def main():
         dr.sync_thread()
         times.append(time.perf_counter() - t0)
         shape = img.shape
-        data = array.array("f", dr.scalar.ArrayXf(img.array) if not variant.startswith("scalar") else img.array)
+        # Scalar variants iterate directly; JIT variants (llvm, cuda) element by element after
+        # evaluation (no numpy needed; images are small).
+        data = array.array("f", list(img.array))
         if sys.byteorder != "little":
             data.byteswap()
         with open(os.path.join(out, f"image_{k}.f32"), "wb") as f:
