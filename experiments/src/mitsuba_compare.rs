@@ -11,7 +11,10 @@
 //! Paths per second: ours = W·H·spp / wall time of `render_image` (scene set-up included);
 //! Mitsuba = the paths of all renders / the summed `mi.render` times (scene loading and the
 //! Python start-up excluded; LLVM variants include JIT compilation in their first render,
-//! `mitsuba_warm_paths_per_second` leaves the first render out). Both use every core.
+//! `mitsuba_warm_paths_per_second` leaves the first render out). Both use every core. On a
+//! shared machine wall times depend on other load, so paths per CPU second (user + system
+//! time of all threads of the rendering process: /proc/self/stat for ours, Python's
+//! `process_time` around each `mi.render`) are reported too, with their ratio `speedup_cpu`.
 //!
 //! Writes into `results/mitsuba_compare/<scene stem>/` (or `--out`): `comparison.csv` (one row per variant), `pixels.csv` (per pixel, first variant),
 //! `ours.png`, `mitsuba.png` (same exposure: the 99.5th percentile of both maps to white,
@@ -116,6 +119,17 @@ pub struct Row {
     pub mitsuba_warm_paths_per_second: f64,
     /// ours_paths_per_second / mitsuba_paths_per_second.
     pub speedup: f64,
+    /// CPU seconds (all threads) of our render (`NaN` where /proc is unavailable).
+    pub ours_cpu_seconds: f64,
+    /// CPU seconds (all threads) of Mitsuba's renders.
+    pub mitsuba_cpu_seconds: f64,
+    /// Our paths per CPU second.
+    pub ours_paths_per_cpu_second: f64,
+    /// Mitsuba's paths per CPU second.
+    pub mitsuba_paths_per_cpu_second: f64,
+    /// ours_paths_per_cpu_second / mitsuba_paths_per_cpu_second: the efficiency ratio,
+    /// robust to other load on a shared machine.
+    pub speedup_cpu: f64,
     /// Mitsuba's version.
     pub mitsuba_version: String,
 }
@@ -223,11 +237,18 @@ pub fn run(args: &Args) -> Result<Vec<Row>> {
         max_depth: args.max_depth,
     };
     let t0 = Instant::now();
+    let c0 = process_cpu_seconds();
     let ours = render_image(&scene, &settings).context("rendering with our path tracer")?;
     let ours_seconds = t0.elapsed().as_secs_f64();
+    let ours_cpu = match (c0, process_cpu_seconds()) {
+        (Some(a), Some(b)) => b - a,
+        _ => f64::NAN,
+    };
     out.timing("ours", ours_seconds);
     let ours_est = estimate(&ours, args.batches);
-    let ours_pps = (width * height) as f64 * f64::from(spp) / ours_seconds;
+    let ours_paths = (width * height) as f64 * f64::from(spp);
+    let ours_pps = ours_paths / ours_seconds;
+    let ours_cpu_pps = ours_paths / ours_cpu;
 
     let mut rows = Vec::new();
     for (i, variant) in variants.iter().enumerate() {
@@ -275,6 +296,11 @@ pub fn run(args: &Args) -> Result<Vec<Row>> {
             mitsuba_paths_per_second: mitsuba_pps,
             mitsuba_warm_paths_per_second: r.warm_paths_per_second(),
             speedup: ours_pps / mitsuba_pps,
+            ours_cpu_seconds: ours_cpu,
+            mitsuba_cpu_seconds: r.render_cpu_seconds.iter().sum(),
+            ours_paths_per_cpu_second: ours_cpu_pps,
+            mitsuba_paths_per_cpu_second: r.paths_per_cpu_second(),
+            speedup_cpu: ours_cpu_pps / r.paths_per_cpu_second(),
             mitsuba_version: r.version.clone(),
         });
         if i == 0 {
@@ -288,6 +314,18 @@ pub fn run(args: &Args) -> Result<Vec<Row>> {
     out.csv("comparison.csv", &rows)?;
     out.finish()?;
     Ok(rows)
+}
+
+/// CPU time (user + system, all threads) of this process from /proc/self/stat, in seconds
+/// (clock ticks of 1/100 s, Linux's USER_HZ); `None` where unavailable.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
+    let rest = stat.rsplit_once(')')?.1;
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
 }
 
 fn estimate(image: &Image, batches: u32) -> ImageEstimate {

@@ -11,8 +11,9 @@ JOB.json (written by the Rust side):
   output_dir   where to write image_<k>.f32 (float32 little-endian, rows top to bottom,
                channels innermost) and result.json
 
-result.json: version, variant, width, height, channels, load_seconds, render_seconds (one per
-seed; each includes waiting for the render to finish).
+result.json: version, variant, width, height, channels, load_seconds, render_seconds (wall
+time of each render, waiting for it to finish) and render_cpu_seconds (CPU time of the whole
+process, all threads, during each render).
 
 The script has no logic of its own beyond this: every modelling decision is made in Rust.
 """
@@ -54,13 +55,15 @@ def main():
     load_seconds = time.perf_counter() - t0
 
     times = []
+    cpu_times = []
     shape = None
     for k, seed in enumerate(job["seeds"]):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         img = mi.render(scene, spp=int(job["spp"]), seed=int(seed))
         dr.eval(img)
         dr.sync_thread()
         times.append(time.perf_counter() - t0)
+        cpu_times.append(time.process_time() - c0)
         shape = img.shape
         # Scalar variants iterate directly; JIT variants (llvm, cuda) element by element after
         # evaluation (no numpy needed; images are small).
@@ -80,6 +83,7 @@ def main():
         "channels": channels,
         "load_seconds": load_seconds,
         "render_seconds": times,
+        "render_cpu_seconds": cpu_times,
     }
     with open(os.path.join(out, "result.json"), "w", encoding="utf-8") as f:
         json.dump(result, f)

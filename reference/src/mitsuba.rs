@@ -204,8 +204,10 @@ pub struct MitsubaRender {
     pub renders: u32,
     /// Seconds to load the scene in Mitsuba.
     pub load_seconds: f64,
-    /// Seconds of each render (the first includes JIT compilation in LLVM variants).
+    /// Wall seconds of each render (the first includes JIT compilation in LLVM variants).
     pub render_seconds: Vec<f64>,
+    /// CPU seconds (all threads of the Python process) of each render.
+    pub render_cpu_seconds: Vec<f64>,
     /// Wall seconds of the whole bridge call (export, Python start-up, load, renders).
     pub wall_seconds: f64,
     /// Largest |channel c − channel 0| over pixels, renders and channels (0 for grey scenes).
@@ -226,6 +228,13 @@ impl MitsubaRender {
         }
         let rest = &self.render_seconds[1..];
         self.paths_per_render() * rest.len() as f64 / rest.iter().sum::<f64>()
+    }
+
+    /// Camera paths per CPU second (all threads) over all renders: the renderer's efficiency,
+    /// less sensitive than wall time to other load on the machine.
+    pub fn paths_per_cpu_second(&self) -> f64 {
+        let paths = self.paths_per_render() * self.renders as f64;
+        paths / self.render_cpu_seconds.iter().sum::<f64>()
     }
 
     fn paths_per_render(&self) -> f64 {
@@ -446,6 +455,7 @@ struct ScriptResult {
     channels: usize,
     load_seconds: f64,
     render_seconds: Vec<f64>,
+    render_cpu_seconds: Vec<f64>,
 }
 
 /// The last `max` bytes of `s` (on a character boundary).
@@ -562,7 +572,10 @@ pub fn render(
             result.width, result.height, camera.resolution
         )));
     }
-    if result.render_seconds.len() != seeds.len() || result.channels == 0 {
+    if result.render_seconds.len() != seeds.len()
+        || result.render_cpu_seconds.len() != seeds.len()
+        || result.channels == 0
+    {
         return Err(MitsubaError::Output(format!(
             "{} render times and {} channels for {} seeds",
             result.render_seconds.len(),
@@ -622,6 +635,7 @@ pub fn render(
         renders: settings.renders,
         load_seconds: result.load_seconds,
         render_seconds: result.render_seconds,
+        render_cpu_seconds: result.render_cpu_seconds,
         wall_seconds: started.elapsed().as_secs_f64(),
         max_channel_difference,
     })
