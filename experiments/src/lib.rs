@@ -9,6 +9,7 @@
 
 pub mod common;
 pub mod convergence;
+pub mod mitsuba_compare;
 pub mod plot;
 pub mod point_source;
 pub mod point_source_analytic;

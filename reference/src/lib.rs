@@ -11,10 +11,15 @@
 //! * [`pathtracer`]: a delta-tracking Monte Carlo path tracer with batch-means error bars —
 //!   camera images and per-voxel fluence of voxel scenes, point-source shell tallies in an
 //!   unbounded medium, and slab reflectance/transmittance.
+//! * [`mitsuba`]: a bridge to Mitsuba 3 (scene export, K-seed renders through its Python
+//!   package) and [`compare`]: per-pixel Welch t-tests with Šidák correction between two
+//!   Monte Carlo images.
 //!
 //! Everything is `f64`.
 #![deny(missing_docs)]
 
+pub mod compare;
+pub mod mitsuba;
 pub mod pathtracer;
 pub mod point_source;
 pub mod quadrature;

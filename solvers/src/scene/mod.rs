@@ -13,6 +13,13 @@
 
 use crate::{Medium, SolverError};
 
+pub mod file;
+pub mod generators;
+pub mod vol;
+
+pub use file::{OutputKind, SceneFile, SceneFileError, load_scene};
+pub use vol::{VolError, VolGrid};
+
 /// A phase function.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Phase {

@@ -1,0 +1,437 @@
+//! Our path tracer against Mitsuba 3 on a scene file: per-pixel agreement, image means and
+//! paths per second.
+//!
+//! Both renderers trace `--spp` paths per pixel in total: ours in one render with
+//! `--batches` batch means for its standard errors, Mitsuba in `--renders` K independent
+//! renders of ⌈spp/K⌉ paths each (K − 1 degrees of freedom), for every `--variant`.
+//! The comparison (`reference::compare`) is a per-pixel Welch t-test with Šidák correction
+//! at family-wise α = `--alpha` (default 0.01), plus the image means with their standard
+//! errors.
+//!
+//! Paths per second: ours = W·H·spp / wall time of `render_image` (scene set-up included);
+//! Mitsuba = the paths of all renders / the summed `mi.render` times (scene loading and the
+//! Python start-up excluded; LLVM variants include JIT compilation in their first render,
+//! `mitsuba_warm_paths_per_second` leaves the first render out). Both use every core. On a
+//! shared machine wall times depend on other load, so paths per CPU second (user + system
+//! time of all threads of the rendering process: /proc/self/stat for ours, Python's
+//! `process_time` around each `mi.render`) are reported too, with their ratio `speedup_cpu`.
+//!
+//! Writes into `results/mitsuba_compare/<scene stem>/` (or `--out`): `comparison.csv` (one row per variant), `pixels.csv` (per pixel, first variant),
+//! `ours.png`, `mitsuba.png` (same exposure: the 99.5th percentile of both maps to white,
+//! sRGB gamma; nearest-neighbour upscaling to at least 256 pixels wide), `difference.png`
+//! (per-pixel t: red where ours is brighter, blue where darker, white at 0, saturated at
+//! |t| = 5; pixels failing the corrected test in yellow), and `meta.json` (with Mitsuba's
+//! version and variants under `parameters.mitsuba`).
+
+use crate::common::{CommonArgs, Output};
+use anyhow::{Context, Result, bail};
+use plotters::prelude::*;
+use reference::compare::{Comparison, ImageEstimate, compare};
+use reference::mitsuba::{MitsubaConfig, MitsubaSettings, render};
+use reference::pathtracer::{Image, MIN_BATCHES, RenderSettings, render_image};
+use serde::Serialize;
+use solvers::scene::SceneFile;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Flags of `mitsuba_compare`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(about = "Compare our path tracer with Mitsuba 3 on a scene file")]
+pub struct Args {
+    /// Shared flags (`--quick`: 32×32 pixels and 64 spp unless given).
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Scene file (TOML, format 1); it needs a camera and no volume emission.
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// Paths per pixel for each renderer (default: the scene's sampler.spp; 64 with --quick).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Override the camera resolution, `W,H` (default: the scene's; 32,32 with --quick).
+    #[arg(long)]
+    pub resolution: Option<String>,
+    /// Independent Mitsuba renders K for its standard errors.
+    #[arg(long, default_value_t = 8)]
+    pub renders: u32,
+    /// Batches of our render for its standard errors.
+    #[arg(long, default_value_t = MIN_BATCHES)]
+    pub batches: u32,
+    /// Mitsuba variants, comma-separated (e.g. `scalar_rgb,llvm_ad_rgb`).
+    #[arg(long, default_value = "scalar_rgb")]
+    pub variant: String,
+    /// Family-wise significance level of the per-pixel test.
+    #[arg(long, default_value_t = 0.01)]
+    pub alpha: f64,
+    /// Override the scene's seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Most scattering events per path (default: unlimited).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+}
+
+/// One row of `comparison.csv`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    /// Scene file name.
+    pub scene: String,
+    /// Mitsuba variant.
+    pub variant: String,
+    /// Number of pixels.
+    pub pixels: usize,
+    /// Fraction of pixels passing the corrected test.
+    pub fraction_passing: f64,
+    /// Our image mean.
+    pub mean_ours: f64,
+    /// Its standard error.
+    pub mean_ours_stderr: f64,
+    /// Mitsuba's image mean.
+    pub mean_mitsuba: f64,
+    /// Its standard error.
+    pub mean_mitsuba_stderr: f64,
+    /// (ours − Mitsuba)/Mitsuba of the image means.
+    pub rel_diff: f64,
+    /// Difference of the image means in combined standard errors.
+    pub mean_z: f64,
+    /// Σ|ours − Mitsuba| / Σ Mitsuba over pixels (noise included).
+    pub l1_rel_diff: f64,
+    /// Family-wise α.
+    pub alpha: f64,
+    /// Width and height.
+    pub width: usize,
+    /// Height.
+    pub height: usize,
+    /// Our paths per pixel.
+    pub spp_ours: u32,
+    /// Mitsuba's paths per pixel over all renders.
+    pub spp_mitsuba: u32,
+    /// Mitsuba renders K.
+    pub renders: u32,
+    /// Our render's wall seconds.
+    pub ours_seconds: f64,
+    /// Mitsuba's summed render seconds.
+    pub mitsuba_seconds: f64,
+    /// Our paths per second.
+    pub ours_paths_per_second: f64,
+    /// Mitsuba's paths per second (all renders).
+    pub mitsuba_paths_per_second: f64,
+    /// Mitsuba's paths per second without its first render.
+    pub mitsuba_warm_paths_per_second: f64,
+    /// ours_paths_per_second / mitsuba_paths_per_second.
+    pub speedup: f64,
+    /// CPU seconds (all threads) of our render (`NaN` where /proc is unavailable).
+    pub ours_cpu_seconds: f64,
+    /// CPU seconds (all threads) of Mitsuba's renders.
+    pub mitsuba_cpu_seconds: f64,
+    /// Our paths per CPU second.
+    pub ours_paths_per_cpu_second: f64,
+    /// Mitsuba's paths per CPU second.
+    pub mitsuba_paths_per_cpu_second: f64,
+    /// ours_paths_per_cpu_second / mitsuba_paths_per_cpu_second: the efficiency ratio,
+    /// robust to other load on a shared machine.
+    pub speedup_cpu: f64,
+    /// Mitsuba's version.
+    pub mitsuba_version: String,
+}
+
+/// One pixel of `pixels.csv`.
+#[derive(Debug, Serialize)]
+struct PixelRow {
+    x: usize,
+    y: usize,
+    ours: f64,
+    ours_stderr: f64,
+    mitsuba: f64,
+    mitsuba_stderr: f64,
+    t: f64,
+    p: f64,
+    pass: bool,
+}
+
+fn parse_resolution(s: &str) -> Result<[usize; 2]> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [w, h] = parts[..] else {
+        bail!("--resolution: expected W,H, got `{s}`");
+    };
+    let parse = |v: &str| {
+        v.parse::<usize>()
+            .ok()
+            .filter(|&n| n > 0)
+            .ok_or_else(|| anyhow::anyhow!("--resolution: `{v}` is not a positive integer"))
+    };
+    Ok([parse(w)?, parse(h)?])
+}
+
+/// Runs the comparison; returns one row per variant.
+pub fn run(args: &Args) -> Result<Vec<Row>> {
+    let file = SceneFile::load(&args.scene)
+        .with_context(|| format!("loading scene {}", args.scene.display()))?;
+    let mut scene = file.scene;
+    let Some(mut camera) = scene.camera else {
+        bail!("{}: the scene has no [camera]", args.scene.display());
+    };
+    if let Some(r) = &args.resolution {
+        camera.resolution = parse_resolution(r)?;
+    } else if args.common.quick {
+        camera.resolution = [32, 32];
+    }
+    scene.camera = Some(camera);
+    let spp = args.spp.unwrap_or(if args.common.quick {
+        64
+    } else {
+        scene.sampler.spp
+    });
+    let seed = args.seed.unwrap_or(scene.sampler.seed);
+    if args.renders < 2 {
+        bail!("--renders must be at least 2 (Mitsuba's standard errors need them)");
+    }
+    if spp < args.batches {
+        bail!(
+            "--spp {spp} must be at least --batches {} (one path per batch)",
+            args.batches
+        );
+    }
+    let spp_per_render = spp.div_ceil(args.renders);
+    let variants: Vec<String> = args
+        .variant
+        .split(',')
+        .map(|v| v.trim().to_string())
+        .filter(|v| !v.is_empty())
+        .collect();
+    if variants.is_empty() {
+        bail!("--variant: give at least one Mitsuba variant");
+    }
+    let mut versions = Vec::new();
+    for v in &variants {
+        versions.push(MitsubaConfig::new(v).probe()?);
+    }
+    let scene_name = args
+        .scene
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let [width, height] = camera.resolution;
+    let params = serde_json::json!({
+        "scene": args.scene.display().to_string(),
+        "width": width, "height": height, "spp": spp, "seed": seed,
+        "batches": args.batches, "renders": args.renders, "spp_per_render": spp_per_render,
+        "alpha": args.alpha, "max_depth": args.max_depth,
+        "mitsuba": {
+            "version": versions.first(),
+            "variants": variants,
+            "python": MitsubaConfig::default_python().display().to_string(),
+        },
+    });
+    // One directory per scene: results/mitsuba_compare/<scene stem>/ unless --out is given.
+    let stem = args
+        .scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    let mut out = Output::new(&format!("mitsuba_compare/{stem}"), &args.common, params)?;
+
+    let settings = RenderSettings {
+        spp,
+        seed,
+        batches: args.batches,
+        max_depth: args.max_depth,
+    };
+    let t0 = Instant::now();
+    let c0 = process_cpu_seconds();
+    let ours = render_image(&scene, &settings).context("rendering with our path tracer")?;
+    let ours_seconds = t0.elapsed().as_secs_f64();
+    let ours_cpu = match (c0, process_cpu_seconds()) {
+        (Some(a), Some(b)) => b - a,
+        _ => f64::NAN,
+    };
+    out.timing("ours", ours_seconds);
+    let ours_est = estimate(&ours, args.batches);
+    let ours_paths = (width * height) as f64 * f64::from(spp);
+    let ours_pps = ours_paths / ours_seconds;
+    let ours_cpu_pps = ours_paths / ours_cpu;
+
+    let mut rows = Vec::new();
+    for (i, variant) in variants.iter().enumerate() {
+        let cfg = MitsubaConfig::new(variant);
+        let ms = MitsubaSettings {
+            spp: spp_per_render,
+            renders: args.renders,
+            seed,
+            max_depth: args.max_depth,
+            keep_dir: None,
+        };
+        let r = render(&scene, &ms, &cfg)
+            .with_context(|| format!("rendering with Mitsuba {variant}"))?;
+        out.timing(
+            format!("mitsuba {variant} (wall, with start-up)"),
+            r.wall_seconds,
+        );
+        out.timing(
+            format!("mitsuba {variant} (renders)"),
+            r.render_seconds.iter().sum(),
+        );
+        let c = compare(&ours_est, &r.image, args.alpha).context("comparing the images")?;
+        let mitsuba_pps = r.paths_per_second();
+        rows.push(Row {
+            scene: scene_name.clone(),
+            variant: variant.clone(),
+            pixels: c.pixels,
+            fraction_passing: c.fraction_passing,
+            mean_ours: c.mean_ours.0,
+            mean_ours_stderr: c.mean_ours.1,
+            mean_mitsuba: c.mean_theirs.0,
+            mean_mitsuba_stderr: c.mean_theirs.1,
+            rel_diff: c.rel_diff,
+            mean_z: c.mean_z,
+            l1_rel_diff: c.l1_rel_diff,
+            alpha: args.alpha,
+            width,
+            height,
+            spp_ours: spp,
+            spp_mitsuba: spp_per_render * args.renders,
+            renders: args.renders,
+            ours_seconds,
+            mitsuba_seconds: r.render_seconds.iter().sum(),
+            ours_paths_per_second: ours_pps,
+            mitsuba_paths_per_second: mitsuba_pps,
+            mitsuba_warm_paths_per_second: r.warm_paths_per_second(),
+            speedup: ours_pps / mitsuba_pps,
+            ours_cpu_seconds: ours_cpu,
+            mitsuba_cpu_seconds: r.render_cpu_seconds.iter().sum(),
+            ours_paths_per_cpu_second: ours_cpu_pps,
+            mitsuba_paths_per_cpu_second: r.paths_per_cpu_second(),
+            speedup_cpu: ours_cpu_pps / r.paths_per_cpu_second(),
+            mitsuba_version: r.version.clone(),
+        });
+        if i == 0 {
+            write_pixels(&out, &ours_est, &r.image, &c)?;
+            let exposure = exposure(&ours_est.mean, &r.image.mean);
+            radiance_png(&out.path("ours.png"), &ours_est, exposure)?;
+            radiance_png(&out.path("mitsuba.png"), &r.image, exposure)?;
+            difference_png(&out.path("difference.png"), &c, width, height)?;
+        }
+    }
+    out.csv("comparison.csv", &rows)?;
+    out.finish()?;
+    Ok(rows)
+}
+
+/// CPU time (user + system, all threads) of this process from /proc/self/stat, in seconds
+/// (clock ticks of 1/100 s, Linux's USER_HZ); `None` where unavailable.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
+    let rest = stat.rsplit_once(')')?.1;
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
+fn estimate(image: &Image, batches: u32) -> ImageEstimate {
+    ImageEstimate {
+        width: image.width,
+        height: image.height,
+        mean: image.mean.clone(),
+        stderr: image.stderr.clone(),
+        dof: f64::from(batches.saturating_sub(1).max(1)),
+    }
+}
+
+fn write_pixels(
+    out: &Output,
+    ours: &ImageEstimate,
+    theirs: &ImageEstimate,
+    c: &Comparison,
+) -> Result<()> {
+    let rows: Vec<PixelRow> = (0..c.pixels)
+        .map(|i| PixelRow {
+            x: i % ours.width,
+            y: i / ours.width,
+            ours: ours.mean[i],
+            ours_stderr: ours.stderr[i],
+            mitsuba: theirs.mean[i],
+            mitsuba_stderr: theirs.stderr[i],
+            t: c.t[i],
+            p: c.p[i],
+            pass: c.pass[i],
+        })
+        .collect();
+    out.csv("pixels.csv", &rows)
+}
+
+/// The value shown as white: the 99.5th percentile of both images' pixels (at least the
+/// smallest positive value, so an all-black image stays black).
+fn exposure(a: &[f64], b: &[f64]) -> f64 {
+    let mut v: Vec<f64> = a
+        .iter()
+        .chain(b)
+        .copied()
+        .filter(|x| x.is_finite())
+        .collect();
+    v.sort_by(f64::total_cmp);
+    let q = v
+        .get(((v.len() as f64 * 0.995) as usize).min(v.len().saturating_sub(1)))
+        .copied()
+        .unwrap_or(1.0);
+    if q > 0.0 { q } else { 1.0 }
+}
+
+fn srgb(v: f64) -> u8 {
+    let v = v.clamp(0.0, 1.0);
+    let s = if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round() as u8
+}
+
+fn upscale(width: usize) -> usize {
+    256usize.div_ceil(width.max(1)).max(1)
+}
+
+fn draw_pixels(
+    path: &Path,
+    width: usize,
+    height: usize,
+    color: impl Fn(usize) -> RGBColor,
+) -> Result<()> {
+    let s = upscale(width);
+    let root =
+        BitMapBackend::new(path, ((width * s) as u32, (height * s) as u32)).into_drawing_area();
+    for y in 0..height {
+        for x in 0..width {
+            let c = color(y * width + x);
+            let (x0, y0) = ((x * s) as i32, (y * s) as i32);
+            let (x1, y1) = (x0 + s as i32, y0 + s as i32);
+            root.draw(&Rectangle::new([(x0, y0), (x1, y1)], c.filled()))
+                .map_err(|e| anyhow::anyhow!("drawing {}: {e}", path.display()))?;
+        }
+    }
+    root.present()
+        .map_err(|e| anyhow::anyhow!("writing {}: {e}", path.display()))?;
+    Ok(())
+}
+
+fn radiance_png(path: &Path, image: &ImageEstimate, exposure: f64) -> Result<()> {
+    draw_pixels(path, image.width, image.height, |i| {
+        let g = srgb(image.mean[i] / exposure);
+        RGBColor(g, g, g)
+    })
+}
+
+fn difference_png(path: &Path, c: &Comparison, width: usize, height: usize) -> Result<()> {
+    draw_pixels(path, width, height, |i| {
+        if !c.pass[i] {
+            return RGBColor(255, 220, 0);
+        }
+        let t = (c.t[i] / 5.0).clamp(-1.0, 1.0);
+        let fade = (255.0 * (1.0 - t.abs())).round() as u8;
+        if t >= 0.0 {
+            RGBColor(255, fade, fade)
+        } else {
+            RGBColor(fade, fade, 255)
+        }
+    })
+}

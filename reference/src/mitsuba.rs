@@ -1,0 +1,748 @@
+//! A bridge to Mitsuba 3: exports a [`Scene`] as a Mitsuba scene (`.vol` grids plus a scene
+//! dictionary), renders it in K independent seeds with the Python package in
+//! `.venv-mitsuba/` (made by `scripts/setup-mitsuba.sh`), and returns the per-pixel mean and
+//! standard error with Mitsuba's version, variant and timings.
+//!
+//! The mapping, checked against Mitsuba 3's source (`src/volumes/grid.cpp`,
+//! `include/mitsuba/render/volumegrid.h`, Dr.Jit's `texture.h`, `src/media/heterogeneous.cpp`,
+//! `include/mitsuba/core/transform.h`, `include/mitsuba/render/sensor.h`,
+//! `src/sensors/{orthographic,perspective}.cpp`, `src/phase/hg.cpp`):
+//!
+//! * **Medium**: a `cube` shape with a `null` BSDF spanning the grid's box, whose `interior`
+//!   is a `heterogeneous` medium with `scale = 1`. σt (and albedo, unless constant) are
+//!   `gridvolume`s read from `.vol` files with `use_grid_bbox = true` and
+//!   `filter_type = "nearest"`. With `use_grid_bbox` the volume's world-to-local transform
+//!   maps the file's box onto the unit cube (`VolumeGrid::bbox_transform`), and the nearest
+//!   filter reads texel ⌊u·n⌋ on each axis (Dr.Jit `Texture::eval_nonaccel`), so texel i
+//!   covers [i, i+1)/n of the box: exactly our piecewise-constant voxel i. The texel order of
+//!   the `.vol` file (x fastest) is ours. The medium's majorant is max σt (delta tracking).
+//! * **Phase**: `isotropic`, or `hg` with the same `g`: Mitsuba evaluates
+//!   HG(−wo·wi) with `wi` pointing back along the incoming ray, so g > 0 is forward
+//!   scattering as in ours.
+//! * **Lights**: `directional` (`direction`, `irradiance` on a plane perpendicular to the
+//!   beam, as ours); `point` with `intensity = power/4π`; `constant` environment with
+//!   `radiance`; a sphere light is a `sphere` shape with a black `diffuse` BSDF and an
+//!   `area` emitter of the same `radiance` (emitting outward, one-sided).
+//! * **Camera**: `to_world = look_at(eye, target, up)`, whose columns are
+//!   (left = up × dir, dir × left, dir, eye). Mitsuba's projections map camera-space +x
+//!   (left) to the image's left edge and +y to its top edge (`scale(−½, −½·aspect)` after
+//!   the projection), so pixel (0, 0) is the top-left one looking along `dir` with `up` up,
+//!   as in our camera. Orthographic: the film spans camera x ∈ [−1, 1], so `to_world` also
+//!   scales x and y by `width/2`. Perspective: `fov` with `fov_axis = "y"`. `near_clip` is
+//!   10⁻⁴ (the orthographic rays start that far in front of the image plane).
+//! * **Film**: `hdrfilm`, RGB float32, `box` reconstruction filter (radius ½: each sample
+//!   lands in exactly the pixel that contains it, so a pixel value is the unweighted mean
+//!   over the pixel's area); `independent` sampler; `volpath` integrator with
+//!   `max_depth = −1` (unlimited, Russian roulette from depth 5) unless a depth is given
+//!   (our "at most k scatterings" is Mitsuba's `max_depth = k + 1`).
+//!   Grey inputs make the three channels equal; channel 0 is used and the largest channel
+//!   difference is recorded.
+//!
+//! Refused: volume emission (Mitsuba's `heterogeneous` medium has none; emissive
+//! comparisons put a sphere light inside the medium) and scenes without a camera.
+
+use crate::compare::ImageEstimate;
+use serde::Deserialize;
+use serde_json::{Value, json};
+use solvers::scene::{Camera, Light, Phase, Projection, Scene, VolError, VolGrid};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+use thiserror::Error;
+
+/// The Python script that renders an exported job (shipped inside the binary).
+pub const SCRIPT: &str = include_str!("../python/render_mitsuba.py");
+
+/// Environment variable naming the Python interpreter that has `mitsuba` (overrides the
+/// repository's `.venv-mitsuba/bin/python`).
+pub const PYTHON_ENV: &str = "SCATTERBENCH_MITSUBA_PYTHON";
+
+/// The message every "not installed" error ends with.
+pub const SETUP_HINT: &str = "run scripts/setup-mitsuba.sh to install Mitsuba 3 into .venv-mitsuba/ (or point SCATTERBENCH_MITSUBA_PYTHON at a python that has it)";
+
+/// Errors of the Mitsuba bridge.
+#[derive(Debug, Error)]
+pub enum MitsubaError {
+    /// No Python with the `mitsuba` package.
+    #[error("Mitsuba 3 not found ({python}): {reason}; {SETUP_HINT}")]
+    NotInstalled {
+        /// The interpreter tried.
+        python: PathBuf,
+        /// Why it is not usable.
+        reason: String,
+    },
+    /// The scene uses something Mitsuba cannot represent the same way.
+    #[error("scene cannot be rendered by Mitsuba: {0}")]
+    Unsupported(String),
+    /// A parameter of the render is invalid.
+    #[error("invalid Mitsuba render settings: {0}")]
+    Settings(String),
+    /// The render script failed.
+    #[error("Mitsuba render script failed ({status}); stderr ends with:\n{stderr_tail}")]
+    ScriptFailed {
+        /// Exit status.
+        status: String,
+        /// The last lines of its standard error.
+        stderr_tail: String,
+    },
+    /// The script's output is missing or inconsistent.
+    #[error("unexpected output from the Mitsuba script: {0}")]
+    Output(String),
+    /// A file could not be written or read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// A grid could not be exported.
+    #[error("exporting a grid: {0}")]
+    Vol(#[from] VolError),
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> MitsubaError + '_ {
+    move |source| MitsubaError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Which Python runs Mitsuba, and which variant.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MitsubaConfig {
+    /// The interpreter (with the `mitsuba` package).
+    pub python: PathBuf,
+    /// The Mitsuba variant, e.g. `scalar_rgb` or `llvm_ad_rgb`.
+    pub variant: String,
+}
+
+impl MitsubaConfig {
+    /// `$SCATTERBENCH_MITSUBA_PYTHON`, else `<workspace>/.venv-mitsuba/bin/python`.
+    pub fn default_python() -> PathBuf {
+        match std::env::var_os(PYTHON_ENV) {
+            Some(p) if !p.is_empty() => PathBuf::from(p),
+            _ => Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("..")
+                .join(".venv-mitsuba")
+                .join("bin")
+                .join("python"),
+        }
+    }
+
+    /// The default interpreter with `variant`.
+    pub fn new(variant: &str) -> Self {
+        Self {
+            python: Self::default_python(),
+            variant: variant.to_string(),
+        }
+    }
+
+    /// Checks that the interpreter imports `mitsuba` and has the variant; returns Mitsuba's
+    /// version.
+    pub fn probe(&self) -> Result<String, MitsubaError> {
+        let not_installed = |reason: String| MitsubaError::NotInstalled {
+            python: self.python.clone(),
+            reason,
+        };
+        if !self.python.exists() {
+            return Err(not_installed("no such interpreter".into()));
+        }
+        let code = "import sys, mitsuba as mi\nv = sys.argv[1]\nprint(mi.__version__)\nprint(v in mi.variants())";
+        let out = Command::new(&self.python)
+            .args(["-c", code, &self.variant])
+            .output()
+            .map_err(|e| not_installed(format!("cannot run it: {e}")))?;
+        if !out.status.success() {
+            return Err(not_installed(format!(
+                "`import mitsuba` failed: {}",
+                tail(&String::from_utf8_lossy(&out.stderr), 400)
+            )));
+        }
+        let text = String::from_utf8_lossy(&out.stdout);
+        let mut lines = text.lines();
+        let version = lines.next().unwrap_or("unknown").trim().to_string();
+        if lines.next().map(str::trim) != Some("True") {
+            return Err(not_installed(format!(
+                "mitsuba {version} has no variant `{}`",
+                self.variant
+            )));
+        }
+        Ok(version)
+    }
+}
+
+/// Settings of a Mitsuba reference render.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MitsubaSettings {
+    /// Samples per pixel of each independent render.
+    pub spp: u32,
+    /// Number of independent renders K (≥ 2) for the per-pixel standard errors.
+    pub renders: u32,
+    /// Base seed; render k uses Mitsuba seed (seed · 65537 + k) mod 2³².
+    pub seed: u64,
+    /// Most scattering events per path in *our* convention (`pathtracer::RenderSettings`:
+    /// light scattered at most k times), passed to Mitsuba as `max_depth = k + 1` (Mitsuba
+    /// counts path segments: `max_depth = 1` is emitted light only); `None`: unlimited.
+    pub max_depth: Option<u32>,
+    /// Keep the exported files here instead of a temporary directory that is removed.
+    pub keep_dir: Option<PathBuf>,
+}
+
+/// A Mitsuba render: per-pixel mean and standard error over K seeds, with provenance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MitsubaRender {
+    /// The mean image and its standard errors (K − 1 degrees of freedom).
+    pub image: ImageEstimate,
+    /// Mitsuba's version.
+    pub version: String,
+    /// The variant used.
+    pub variant: String,
+    /// Samples per pixel of each render.
+    pub spp: u32,
+    /// Number of renders K.
+    pub renders: u32,
+    /// Seconds to load the scene in Mitsuba.
+    pub load_seconds: f64,
+    /// Wall seconds of each render (the first includes JIT compilation in LLVM variants).
+    pub render_seconds: Vec<f64>,
+    /// CPU seconds (all threads of the Python process) of each render.
+    pub render_cpu_seconds: Vec<f64>,
+    /// Wall seconds of the whole bridge call (export, Python start-up, load, renders).
+    pub wall_seconds: f64,
+    /// Largest |channel c − channel 0| over pixels, renders and channels (0 for grey scenes).
+    pub max_channel_difference: f64,
+}
+
+impl MitsubaRender {
+    /// Camera paths per second over all renders.
+    pub fn paths_per_second(&self) -> f64 {
+        let paths = self.paths_per_render() * self.renders as f64;
+        paths / self.render_seconds.iter().sum::<f64>()
+    }
+
+    /// Camera paths per second over renders 2…K (excludes JIT compilation and warm-up).
+    pub fn warm_paths_per_second(&self) -> f64 {
+        if self.render_seconds.len() < 2 {
+            return self.paths_per_second();
+        }
+        let rest = &self.render_seconds[1..];
+        self.paths_per_render() * rest.len() as f64 / rest.iter().sum::<f64>()
+    }
+
+    /// Camera paths per CPU second (all threads) over all renders: the renderer's efficiency,
+    /// less sensitive than wall time to other load on the machine.
+    pub fn paths_per_cpu_second(&self) -> f64 {
+        let paths = self.paths_per_render() * self.renders as f64;
+        paths / self.render_cpu_seconds.iter().sum::<f64>()
+    }
+
+    fn paths_per_render(&self) -> f64 {
+        (self.image.width * self.image.height) as f64 * f64::from(self.spp)
+    }
+}
+
+/// A 4×4 row-major matrix as the script's transform marker.
+fn transform(m: [[f64; 4]; 4]) -> Value {
+    json!({ "__transform__": m })
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    a.map(|v| v / n)
+}
+
+/// Mitsuba's `look_at(eye, target, up)`: columns (left, up′, dir, eye) with
+/// dir = normalise(target − eye), left = normalise(up × dir), up′ = dir × left.
+pub fn look_at(eye: [f64; 3], target: [f64; 3], up: [f64; 3]) -> [[f64; 4]; 4] {
+    let dir = normalize(sub(target, eye));
+    let left = normalize(cross(up, dir));
+    let new_up = cross(dir, left);
+    let mut m = [[0.0; 4]; 4];
+    for r in 0..3 {
+        m[r] = [left[r], new_up[r], dir[r], eye[r]];
+    }
+    m[3] = [0.0, 0.0, 0.0, 1.0];
+    m
+}
+
+/// The Mitsuba sensor `to_world` of our camera (see the module documentation).
+pub fn sensor_to_world(camera: &Camera) -> [[f64; 4]; 4] {
+    let mut m = look_at(camera.eye, camera.target, camera.up);
+    if let Projection::Orthographic { width } = camera.projection {
+        for row in m.iter_mut().take(3) {
+            row[0] *= 0.5 * width;
+            row[1] *= 0.5 * width;
+        }
+    }
+    m
+}
+
+/// Where pixel position (`px`, `py`) (continuous, (0, 0) the top-left corner of the image,
+/// x right, y down, in pixels) looks through an orthographic Mitsuba sensor with `to_world`,
+/// following Mitsuba's sample-to-camera map; returns the ray origin on the image plane.
+pub fn orthographic_pixel_origin(
+    to_world: &[[f64; 4]; 4],
+    resolution: [usize; 2],
+    px: f64,
+    py: f64,
+) -> [f64; 3] {
+    // Film sample (u, v) ∈ [0,1]²; camera x = 1 − 2u, y = (1 − 2v)/aspect (sensor.h).
+    let aspect = resolution[0] as f64 / resolution[1] as f64;
+    let (u, v) = (px / resolution[0] as f64, py / resolution[1] as f64);
+    let local = [1.0 - 2.0 * u, (1.0 - 2.0 * v) / aspect, 0.0, 1.0];
+    let mut out = [0.0; 3];
+    for (r, o) in out.iter_mut().enumerate() {
+        *o = (0..4).map(|c| to_world[r][c] * local[c]).sum();
+    }
+    out
+}
+
+/// Exports `scene` for Mitsuba (`max_depth` in Mitsuba's convention, `None` for −1): writes `sigma_t.vol` (and `albedo.vol` unless the albedo is
+/// constant) into `dir` and returns the scene dictionary (transforms as `__transform__`
+/// markers), with a `hdrfilm` of the camera's resolution and an `independent` sampler of
+/// `spp` samples.
+pub fn export_scene(
+    scene: &Scene,
+    dir: &Path,
+    spp: u32,
+    max_depth: Option<u32>,
+) -> Result<Value, MitsubaError> {
+    let m = &scene.medium;
+    if let Some(i) = m.emission.iter().position(|&j| j != 0.0) {
+        return Err(MitsubaError::Unsupported(format!(
+            "the medium emits (emission {} in voxel {i}); Mitsuba's heterogeneous medium has no volume emission: compare emissive scenes with a sphere light inside the medium instead",
+            m.emission[i]
+        )));
+    }
+    let camera = scene.camera.ok_or_else(|| {
+        MitsubaError::Unsupported("the scene has no camera to render an image with".into())
+    })?;
+    camera
+        .validate()
+        .map_err(|e| MitsubaError::Unsupported(e.to_string()))?;
+    let grid = &m.grid;
+    let sigma_path = dir.join("sigma_t.vol");
+    VolGrid::from_field(grid, &m.sigma_t)?.write(&sigma_path)?;
+    let grid_volume = |path: &Path| {
+        json!({
+            "type": "gridvolume",
+            "filename": path.to_string_lossy(),
+            "use_grid_bbox": true,
+            "filter_type": "nearest",
+        })
+    };
+    let albedo = if m.albedo.iter().all(|&a| a == m.albedo[0]) {
+        json!(m.albedo[0])
+    } else {
+        let p = dir.join("albedo.vol");
+        VolGrid::from_field(grid, &m.albedo)?.write(&p)?;
+        grid_volume(&p)
+    };
+    let phase = match scene.phase {
+        Phase::Isotropic => json!({"type": "isotropic"}),
+        Phase::HenyeyGreenstein { g } => json!({"type": "hg", "g": g}),
+    };
+    let size = grid.size();
+    let half = size.map(|s| 0.5 * s);
+    let centre = [0, 1, 2].map(|a| grid.origin[a] + half[a]);
+    let cube_to_world = [
+        [half[0], 0.0, 0.0, centre[0]],
+        [0.0, half[1], 0.0, centre[1]],
+        [0.0, 0.0, half[2], centre[2]],
+        [0.0, 0.0, 0.0, 1.0],
+    ];
+    let mut dict = serde_json::Map::new();
+    dict.insert("type".into(), json!("scene"));
+    dict.insert(
+        "integrator".into(),
+        json!({
+            "type": "volpath",
+            "max_depth": max_depth.map_or(-1, i64::from),
+        }),
+    );
+    let film = json!({
+        "type": "hdrfilm",
+        "width": camera.resolution[0],
+        "height": camera.resolution[1],
+        "rfilter": {"type": "box"},
+        "pixel_format": "rgb",
+        "component_format": "float32",
+    });
+    let mut sensor = json!({
+        "to_world": transform(sensor_to_world(&camera)),
+        "near_clip": 1e-4,
+        "far_clip": 1e4,
+        "film": film,
+        "sampler": {"type": "independent", "sample_count": spp},
+    });
+    match camera.projection {
+        Projection::Orthographic { .. } => sensor["type"] = json!("orthographic"),
+        Projection::Perspective { fov_y_degrees } => {
+            sensor["type"] = json!("perspective");
+            sensor["fov"] = json!(fov_y_degrees);
+            sensor["fov_axis"] = json!("y");
+        }
+    }
+    dict.insert("sensor".into(), sensor);
+    dict.insert(
+        "medium_bounds".into(),
+        json!({
+            "type": "cube",
+            "to_world": transform(cube_to_world),
+            "bsdf": {"type": "null"},
+            "interior": {
+                "type": "heterogeneous",
+                "sigma_t": grid_volume(&sigma_path),
+                "albedo": albedo,
+                "scale": 1.0,
+                "phase": phase,
+            },
+        }),
+    );
+    for (i, light) in scene.lights.iter().enumerate() {
+        let entry = match *light {
+            Light::Point { position, power } => json!({
+                "type": "point",
+                "position": position,
+                "intensity": power / (4.0 * std::f64::consts::PI),
+            }),
+            Light::Directional {
+                direction,
+                irradiance,
+            } => json!({
+                "type": "directional",
+                "direction": direction,
+                "irradiance": irradiance,
+            }),
+            Light::Sphere {
+                center,
+                radius,
+                radiance,
+            } => json!({
+                "type": "sphere",
+                "center": center,
+                "radius": radius,
+                "bsdf": {"type": "diffuse", "reflectance": 0.0},
+                "emitter": {"type": "area", "radiance": radiance},
+            }),
+            Light::Environment { radiance } => json!({
+                "type": "constant",
+                "radiance": radiance,
+            }),
+        };
+        dict.insert(format!("light_{i}"), entry);
+    }
+    Ok(Value::Object(dict))
+}
+
+#[derive(Deserialize)]
+struct ScriptResult {
+    version: String,
+    variant: String,
+    width: usize,
+    height: usize,
+    channels: usize,
+    load_seconds: f64,
+    render_seconds: Vec<f64>,
+    render_cpu_seconds: Vec<f64>,
+}
+
+/// The last `max` bytes of `s` (on a character boundary).
+fn tail(s: &str, max: usize) -> String {
+    let start = s.len().saturating_sub(max);
+    let start = (start..=s.len())
+        .find(|&i| s.is_char_boundary(i))
+        .unwrap_or(s.len());
+    s[start..].trim().to_string()
+}
+
+/// A scratch directory, removed on drop unless kept.
+struct WorkDir {
+    path: PathBuf,
+    keep: bool,
+}
+
+impl WorkDir {
+    fn new(keep: Option<&Path>) -> Result<Self, MitsubaError> {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        static COUNTER: AtomicUsize = AtomicUsize::new(0);
+        let (path, keep) = match keep {
+            Some(p) => (p.to_path_buf(), true),
+            None => (
+                std::env::temp_dir().join(format!(
+                    "scatterbench-mitsuba-{}-{}",
+                    std::process::id(),
+                    COUNTER.fetch_add(1, Ordering::Relaxed)
+                )),
+                false,
+            ),
+        };
+        std::fs::create_dir_all(&path).map_err(io(&path))?;
+        Ok(Self { path, keep })
+    }
+}
+
+impl Drop for WorkDir {
+    fn drop(&mut self) {
+        if !self.keep {
+            let _ = std::fs::remove_dir_all(&self.path);
+        }
+    }
+}
+
+/// Renders `scene` with Mitsuba K = `settings.renders` times with independent seeds and
+/// returns the per-pixel mean and standard error (K − 1 degrees of freedom).
+pub fn render(
+    scene: &Scene,
+    settings: &MitsubaSettings,
+    config: &MitsubaConfig,
+) -> Result<MitsubaRender, MitsubaError> {
+    let started = Instant::now();
+    if settings.renders < 2 {
+        return Err(MitsubaError::Settings(format!(
+            "renders = {}: at least 2 independent renders are needed for standard errors",
+            settings.renders
+        )));
+    }
+    if settings.spp == 0 {
+        return Err(MitsubaError::Settings("spp must be at least 1".into()));
+    }
+    config.probe()?;
+    let work = WorkDir::new(settings.keep_dir.as_deref())?;
+    let dir = &work.path;
+    let scene_dict = export_scene(
+        scene,
+        dir,
+        settings.spp,
+        settings.max_depth.map(|k| k.saturating_add(1)),
+    )?;
+    let seeds: Vec<u32> = (0..settings.renders)
+        .map(|k| {
+            (settings.seed.wrapping_mul(65537).wrapping_add(u64::from(k)) & 0xffff_ffff) as u32
+        })
+        .collect();
+    let job = json!({
+        "variant": config.variant,
+        "spp": settings.spp,
+        "seeds": seeds,
+        "scene": scene_dict,
+        "output_dir": dir.to_string_lossy(),
+    });
+    let job_path = dir.join("job.json");
+    let text = serde_json::to_string_pretty(&job)
+        .map_err(|e| MitsubaError::Output(format!("serialising the job: {e}")))?;
+    std::fs::write(&job_path, text).map_err(io(&job_path))?;
+    let script_path = dir.join("render_mitsuba.py");
+    std::fs::write(&script_path, SCRIPT).map_err(io(&script_path))?;
+    let out = Command::new(&config.python)
+        .arg(&script_path)
+        .arg(&job_path)
+        .output()
+        .map_err(|e| MitsubaError::NotInstalled {
+            python: config.python.clone(),
+            reason: format!("cannot run it: {e}"),
+        })?;
+    if !out.status.success() {
+        return Err(MitsubaError::ScriptFailed {
+            status: out.status.to_string(),
+            stderr_tail: tail(&String::from_utf8_lossy(&out.stderr), 2000),
+        });
+    }
+    let result_path = dir.join("result.json");
+    let result: ScriptResult =
+        serde_json::from_str(&std::fs::read_to_string(&result_path).map_err(io(&result_path))?)
+            .map_err(|e| MitsubaError::Output(format!("{}: {e}", result_path.display())))?;
+    let camera = scene
+        .camera
+        .ok_or_else(|| MitsubaError::Unsupported("no camera".into()))?;
+    if [result.width, result.height] != camera.resolution {
+        return Err(MitsubaError::Output(format!(
+            "image is {}x{}, the camera has {:?}",
+            result.width, result.height, camera.resolution
+        )));
+    }
+    if result.render_seconds.len() != seeds.len()
+        || result.render_cpu_seconds.len() != seeds.len()
+        || result.channels == 0
+    {
+        return Err(MitsubaError::Output(format!(
+            "{} render times and {} channels for {} seeds",
+            result.render_seconds.len(),
+            result.channels,
+            seeds.len()
+        )));
+    }
+    let (w, h, c) = (result.width, result.height, result.channels);
+    let n = w * h;
+    let mut sum = vec![0.0; n];
+    let mut sum_sq = vec![0.0; n];
+    let mut max_channel_difference: f64 = 0.0;
+    for k in 0..seeds.len() {
+        let path = dir.join(format!("image_{k}.f32"));
+        let bytes = std::fs::read(&path).map_err(io(&path))?;
+        if bytes.len() != n * c * 4 {
+            return Err(MitsubaError::Output(format!(
+                "{} has {} bytes, expected {}",
+                path.display(),
+                bytes.len(),
+                n * c * 4
+            )));
+        }
+        let values: Vec<f64> = bytes
+            .chunks_exact(4)
+            .map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+            .collect();
+        for p in 0..n {
+            let v0 = values[p * c];
+            for ch in 1..c {
+                max_channel_difference =
+                    max_channel_difference.max((values[p * c + ch] - v0).abs());
+            }
+            sum[p] += v0;
+            sum_sq[p] += v0 * v0;
+        }
+    }
+    let kf = seeds.len() as f64;
+    let mean: Vec<f64> = sum.iter().map(|s| s / kf).collect();
+    let stderr: Vec<f64> = (0..n)
+        .map(|p| {
+            let var = ((sum_sq[p] - kf * mean[p] * mean[p]) / (kf - 1.0)).max(0.0);
+            (var / kf).sqrt()
+        })
+        .collect();
+    Ok(MitsubaRender {
+        image: ImageEstimate {
+            width: w,
+            height: h,
+            mean,
+            stderr,
+            dof: kf - 1.0,
+        },
+        version: result.version,
+        variant: result.variant,
+        spp: settings.spp,
+        renders: settings.renders,
+        load_seconds: result.load_seconds,
+        render_seconds: result.render_seconds,
+        render_cpu_seconds: result.render_cpu_seconds,
+        wall_seconds: started.elapsed().as_secs_f64(),
+        max_channel_difference,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use solvers::{Grid, Medium};
+
+    fn camera(projection: Projection) -> Camera {
+        Camera {
+            eye: [0.5, -1.0, 0.5],
+            target: [0.5, 0.5, 0.5],
+            up: [0.0, 0.0, 1.0],
+            projection,
+            resolution: [8, 4],
+        }
+    }
+
+    #[test]
+    fn orthographic_sensor_puts_pixel_zero_top_left_with_square_pixels() {
+        // Looking along +y with z up: right is +x, so the image's top-left corner is at
+        // (−w/2, ·, +h/2) relative to the eye, and pixels are w/8 = h/4 square.
+        let cam = camera(Projection::Orthographic { width: 2.0 });
+        let m = sensor_to_world(&cam);
+        let tl = orthographic_pixel_origin(&m, cam.resolution, 0.0, 0.0);
+        let br = orthographic_pixel_origin(&m, cam.resolution, 8.0, 4.0);
+        let expect_tl = [0.5 - 1.0, -1.0, 0.5 + 0.5];
+        let expect_br = [0.5 + 1.0, -1.0, 0.5 - 0.5];
+        for a in 0..3 {
+            assert!((tl[a] - expect_tl[a]).abs() < 1e-12, "{tl:?}");
+            assert!((br[a] - expect_br[a]).abs() < 1e-12, "{br:?}");
+        }
+        // The view direction (third column) is +y.
+        assert!((m[1][2] - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn export_maps_grid_lights_and_camera_and_refuses_emission() {
+        let grid = Grid::with_origin([4, 4, 4], 0.25, [1.0, 2.0, 3.0]).unwrap();
+        let mut medium = Medium::homogeneous(grid, 2.0, 0.5).unwrap();
+        medium.sigma_t[5] = 7.0;
+        let mut scene = Scene {
+            medium,
+            phase: Phase::HenyeyGreenstein { g: 0.3 },
+            lights: vec![
+                Light::Point {
+                    position: [0.0; 3],
+                    power: 4.0 * std::f64::consts::PI,
+                },
+                Light::Sphere {
+                    center: [1.5, 2.5, 3.5],
+                    radius: 0.1,
+                    radiance: 2.0,
+                },
+            ],
+            camera: Some(camera(Projection::Perspective {
+                fov_y_degrees: 30.0,
+            })),
+            sampler: solvers::scene::Sampler { spp: 4, seed: 1 },
+        };
+        let dir =
+            std::env::temp_dir().join(format!("scatterbench-mi-export-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let d = export_scene(&scene, &dir, 16, None).unwrap();
+        let vol = VolGrid::read(&dir.join("sigma_t.vol")).unwrap();
+        assert_eq!(vol.min, [1.0, 2.0, 3.0]);
+        assert_eq!(vol.max, [2.0, 3.0, 4.0]);
+        assert_eq!(vol.data[5], 7.0);
+        let medium = &d["medium_bounds"]["interior"];
+        assert_eq!(medium["albedo"], json!(0.5));
+        assert_eq!(medium["sigma_t"]["filter_type"], json!("nearest"));
+        assert_eq!(medium["phase"], json!({"type": "hg", "g": 0.3}));
+        assert_eq!(
+            d["medium_bounds"]["to_world"]["__transform__"][0],
+            json!([0.5, 0.0, 0.0, 1.5])
+        );
+        assert_eq!(d["light_0"]["intensity"], json!(1.0));
+        assert_eq!(d["light_1"]["emitter"]["radiance"], json!(2.0));
+        assert_eq!(d["sensor"]["fov_axis"], json!("y"));
+        assert_eq!(d["sensor"]["film"]["width"], json!(8));
+        assert_eq!(d["sensor"]["film"]["rfilter"]["type"], json!("box"));
+        assert_eq!(d["integrator"]["max_depth"], json!(-1));
+        scene.medium.emission[3] = 1.0;
+        let err = export_scene(&scene, &dir, 16, None).unwrap_err();
+        assert!(err.to_string().contains("no volume emission"), "{err}");
+        scene.medium.emission[3] = 0.0;
+        scene.camera = None;
+        assert!(matches!(
+            export_scene(&scene, &dir, 16, None),
+            Err(MitsubaError::Unsupported(_))
+        ));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn a_missing_interpreter_is_a_typed_error_that_says_how_to_install() {
+        let cfg = MitsubaConfig {
+            python: PathBuf::from("/nonexistent/python"),
+            variant: "scalar_rgb".into(),
+        };
+        let err = cfg.probe().unwrap_err();
+        assert!(matches!(err, MitsubaError::NotInstalled { .. }));
+        assert!(
+            err.to_string().contains("scripts/setup-mitsuba.sh"),
+            "{err}"
+        );
+    }
+}
