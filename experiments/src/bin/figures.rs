@@ -4,7 +4,10 @@
 use anyhow::{Context, Result};
 use clap::Parser;
 use experiments::common::{CommonArgs, git_revision, workspace_root};
-use experiments::{convergence, point_source, point_source_analytic};
+use experiments::{
+    convergence, mitsuba_compare, point_source, point_source_analytic, pt_point_source, pt_render,
+    pt_slab, transport_references,
+};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -43,7 +46,7 @@ fn main() -> Result<()> {
     timed(
         &mut times,
         "point_source_analytic",
-        "[1/4] FLD Fig 3".into(),
+        "[1/9] FLD Fig 3".into(),
         || {
             let mut a = point_source_analytic::Args::parse_from(["point_source_analytic"]);
             a.common = common("point_source_analytic");
@@ -54,7 +57,7 @@ fn main() -> Result<()> {
     let fig5 = timed(
         &mut times,
         "point_source",
-        format!("[2/4] FLD Fig 5: CDA and FLD-LP, {n5}³"),
+        format!("[2/9] FLD Fig 5: CDA and FLD-LP, {n5}³"),
         || {
             let mut a = point_source::Args::parse_from(["point_source", "--limiter", "cda,lp"]);
             a.common = common("point_source");
@@ -66,7 +69,7 @@ fn main() -> Result<()> {
     let limiters = timed(
         &mut times,
         "flux_limiters",
-        format!("[3/4] every limiter, both Knudsen forms, {n_lim}³"),
+        format!("[3/9] every limiter, both Knudsen forms, {n_lim}³"),
         || {
             let mut a = point_source::Args::parse_from([
                 "point_source",
@@ -82,19 +85,176 @@ fn main() -> Result<()> {
             point_source::run(&a)
         },
     )?;
-    let conv = timed(&mut times, "convergence", "[4/4] FLD Fig 4".into(), || {
+    let conv = timed(&mut times, "convergence", "[4/9] FLD Fig 4".into(), || {
         let mut a = convergence::Args::parse_from(["convergence"]);
         a.common = common("convergence");
         a.backend.backend = args.backend.clone();
         convergence::run(&a)
     })?;
 
+    timed(
+        &mut times,
+        "transport_references",
+        "[5/9] exact transport references".into(),
+        || {
+            let mut a = transport_references::Args::parse_from(["transport_references"]);
+            a.common = common("transport_references");
+            transport_references::run(&a)
+        },
+    )?;
+    timed(
+        &mut times,
+        "pt_point_source",
+        "[6/9] path tracer: point-source shells vs exact".into(),
+        || {
+            let mut a = pt_point_source::Args::parse_from(["pt_point_source"]);
+            a.common = common("pt_point_source");
+            pt_point_source::run(&a)
+        },
+    )?;
+    timed(
+        &mut times,
+        "pt_slab",
+        "[7/9] path tracer: slabs vs adding-doubling and H".into(),
+        || {
+            let mut a = pt_slab::Args::parse_from(["pt_slab"]);
+            a.common = common("pt_slab");
+            pt_slab::run(&a)
+        },
+    )?;
+    timed(
+        &mut times,
+        "pt_render",
+        "[8/9] path tracer throughput".into(),
+        || {
+            let mut a = pt_render::Args::parse_from(["pt_render"]);
+            a.common = common("pt_render");
+            pt_render::run(&a)
+        },
+    )?;
+    // Mitsuba is optional for the figures: without its venv the comparison is skipped with a
+    // note (the tests require it in CI).
+    let mut mitsuba_note = String::new();
+    for scene in ["cloud_directional", "emissive_sphere"] {
+        let path = workspace_root()
+            .join("scenes")
+            .join(format!("{scene}.toml"));
+        let name: &'static str = if scene == "cloud_directional" {
+            "mitsuba_compare/cloud_directional"
+        } else {
+            "mitsuba_compare/emissive_sphere"
+        };
+        let r = timed(
+            &mut times,
+            name,
+            format!("[9/9] path tracer vs Mitsuba 3: {scene}"),
+            || {
+                let mut a = mitsuba_compare::Args::parse_from([
+                    "mitsuba_compare",
+                    "--scene",
+                    path.to_str().unwrap_or_default(),
+                ]);
+                a.common = common(name);
+                mitsuba_compare::run(&a)
+            },
+        );
+        if let Err(e) = r {
+            let msg = format!("{e:#}");
+            if msg.contains("setup-mitsuba.sh") {
+                eprintln!("skipped mitsuba_compare: {msg}");
+                mitsuba_note = format!("Mitsuba comparison skipped: {msg}");
+                break;
+            }
+            return Err(e);
+        }
+    }
+
     let total = t0.elapsed().as_secs_f64();
-    let readme = report(&args, &fig5, &limiters, &conv, &times, total);
+    let mut readme = report(&args, &fig5, &limiters, &conv, &times, total);
+    readme.push_str(&reference_sections(&root, &mitsuba_note));
     let path = root.join("README.md");
     std::fs::write(&path, readme).with_context(|| format!("writing {}", path.display()))?;
     eprintln!("done in {total:.0} s; see {}", path.display());
     Ok(())
+}
+
+/// Sections for the reference experiments: their plots and CSV tables as written.
+fn reference_sections(root: &std::path::Path, mitsuba_note: &str) -> String {
+    let mut s = String::new();
+    let csv = |rel: &str| std::fs::read_to_string(root.join(rel)).unwrap_or_default();
+    let pngs = |dir: &str| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(root.join(dir))
+            .map(|it| {
+                it.filter_map(|e| e.ok())
+                    .map(|e| e.file_name().to_string_lossy().to_string())
+                    .filter(|n| n.ends_with(".png"))
+                    .collect()
+            })
+            .unwrap_or_default();
+        v.sort();
+        v
+    };
+    let sections = [
+        (
+            "transport_references",
+            "Exact transport references (`transport_references/`)",
+            "Case–Zweifel point source, Chandrasekhar H-function and adding–doubling slabs, each \
+             checked against an independent second computation (see `reference::transport`). \
+             Grosjean's error against the exact point source:",
+            "point_source_summary.csv",
+        ),
+        (
+            "pt_point_source",
+            "Path tracer: point-source shells (`pt_point_source/`)",
+            "Average of 4πr²φ over each shell, with batch-means standard errors, against the exact \
+             solution (`z` column):",
+            "shells.csv",
+        ),
+        (
+            "pt_slab",
+            "Path tracer: slabs (`pt_slab/`)",
+            "Diffuse reflectance and transmittance against the adding–doubling solver and the \
+             H-function (`z_*` columns):",
+            "slab.csv",
+        ),
+        (
+            "pt_render",
+            "Path tracer: throughput (`pt_render/`)",
+            "Paths per second on a noise cloud, majorant grid vs one global majorant:",
+            "timing.csv",
+        ),
+    ];
+    for (dir, title, text, table) in sections {
+        let _ = writeln!(s, "\n## {title}\n\n{text}\n");
+        let t = csv(&format!("{dir}/{table}"));
+        if !t.is_empty() {
+            let _ = writeln!(s, "```\n{t}```");
+        }
+        for p in pngs(dir) {
+            let _ = writeln!(s, "![{p}]({dir}/{p})");
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\n## Path tracer vs Mitsuba 3 (`mitsuba_compare/`)\n\n\
+         Per-pixel Welch t-test with Šidák correction (family-wise α = 0.01), image means with \
+         standard errors, and paths per second of both renderers measured in the same run."
+    );
+    if !mitsuba_note.is_empty() {
+        let _ = writeln!(s, "\n{mitsuba_note}");
+    }
+    for scene in ["cloud_directional", "emissive_sphere"] {
+        let dir = format!("mitsuba_compare/{scene}");
+        let t = csv(&format!("{dir}/comparison.csv"));
+        if t.is_empty() {
+            continue;
+        }
+        let _ = writeln!(s, "\n### `{scene}`\n\n```\n{t}```");
+        for p in ["ours.png", "mitsuba.png", "difference.png"] {
+            let _ = writeln!(s, "![{scene} {p}]({dir}/{p})");
+        }
+    }
+    s
 }
 
 /// Runs one experiment, printing `label` first and recording its wall time under `name`.
