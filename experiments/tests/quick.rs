@@ -168,9 +168,14 @@ fn bad_flags_are_errors_not_panics() {
 #[test]
 fn gpu_backend_reproduces_the_cpu_figures() {
     match solvers::gpu::GpuContext::for_tests() {
-        Ok(Some(_)) => {}
+        Ok(Some(ctx)) => solvers::gpu::log_uncaptured(&format!(
+            "gpu_backend_reproduces_the_cpu_figures: ran on {}",
+            ctx.describe()
+        )),
         Ok(None) => {
-            eprintln!("gpu_backend_reproduces_the_cpu_figures: skipped: no GPU adapter");
+            solvers::gpu::log_uncaptured(
+                "gpu_backend_reproduces_the_cpu_figures: skipped: no GPU adapter",
+            );
             return;
         }
         Err(e) => panic!("SCATTERBENCH_REQUIRE_GPU is set: {e}"),

@@ -28,10 +28,10 @@ fn on_backend(kind: &str, test: &str, body: impl FnOnce(&Backend<'_>)) {
                     .map(Mutex::new)
             });
             match gpu {
-                None => eprintln!("{test}: skipped: no GPU adapter"),
+                None => solvers::gpu::log_uncaptured(&format!("{test}: skipped: no GPU adapter")),
                 Some(m) => {
                     let ctx = m.lock().unwrap_or_else(|e| e.into_inner());
-                    eprintln!("{test}: on {}", ctx.describe());
+                    solvers::gpu::log_uncaptured(&format!("{test}: ran on {}", ctx.describe()));
                     body(&Backend::Gpu(&ctx));
                 }
             }

@@ -9,8 +9,11 @@ use solvers::{SolverError, scenes};
 fn gpu(test: &str) -> Option<GpuContext> {
     let ctx =
         GpuContext::for_tests().unwrap_or_else(|e| panic!("SCATTERBENCH_REQUIRE_GPU is set: {e}"));
+    if let Some(c) = &ctx {
+        solvers::gpu::log_uncaptured(&format!("{test}: ran on {}", c.describe()));
+    }
     if ctx.is_none() {
-        eprintln!("{test}: skipped: no GPU adapter");
+        solvers::gpu::log_uncaptured(&format!("{test}: skipped: no GPU adapter"));
     }
     ctx
 }

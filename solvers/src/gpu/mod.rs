@@ -91,6 +91,15 @@ pub enum GpuError {
     },
 }
 
+/// Writes one line to the process's stderr directly, bypassing the test harness's output
+/// capture (which only intercepts `eprintln!`), so that CI logs show which adapter the GPU
+/// tests ran on, or that they were skipped.
+pub fn log_uncaptured(line: &str) {
+    use std::io::Write as _;
+    let mut err = std::io::stderr().lock();
+    let _ = writeln!(err, "{line}");
+}
+
 /// How GPU time was measured.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Timer {
