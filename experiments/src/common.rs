@@ -190,6 +190,19 @@ impl Output {
     }
 }
 
+/// The column names (header row) of a CSV file, for checking an experiment's interface.
+pub fn csv_header(path: &Path) -> Result<Vec<String>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    Ok(text
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .split(',')
+        .map(str::to_string)
+        .collect())
+}
+
 /// `git describe --always --dirty` of the workspace, or "unknown" outside a checkout.
 pub fn git_revision() -> String {
     std::process::Command::new("git")

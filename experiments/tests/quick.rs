@@ -9,13 +9,7 @@ use experiments::{convergence, point_source};
 use std::path::Path;
 
 fn header(path: &Path) -> Vec<String> {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    text.lines()
-        .next()
-        .unwrap_or_default()
-        .split(',')
-        .map(str::to_string)
-        .collect()
+    experiments::common::csv_header(path).unwrap()
 }
 
 fn assert_columns(path: &Path, cols: &[&str]) {
