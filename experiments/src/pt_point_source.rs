@@ -285,23 +285,9 @@ fn plots(out: &Output, albedos: &[f64], gs: &[f64], rows: &[ShellRow]) -> Result
             &Axis::log("4πr²φ (shell average)").range(0.01, 20.0),
             &series,
         )?;
-        let z: Vec<Series> = albedos
-            .iter()
-            .enumerate()
-            .map(|(k, &c)| {
-                Series::new(
-                    format!("c = {c}"),
-                    rows.iter()
-                        .filter(|r| r.albedo == c && r.g == g)
-                        .map(|r| (0.5 * (r.r_inner + r.r_outer), r.z_ballistic))
-                        .collect(),
-                    Style::Points,
-                    k,
-                )
-            })
-            .collect();
-        if g == 0.0 {
-            let z: Vec<Series> = albedos
+        // One series per albedo of a z-score column against the shell's mid radius.
+        let z_series = |z_of: &dyn Fn(&ShellRow) -> Option<f64>| -> Vec<Series> {
+            albedos
                 .iter()
                 .enumerate()
                 .map(|(k, &c)| {
@@ -309,13 +295,17 @@ fn plots(out: &Output, albedos: &[f64], gs: &[f64], rows: &[ShellRow]) -> Result
                         format!("c = {c}"),
                         rows.iter()
                             .filter(|r| r.albedo == c && r.g == g)
-                            .filter_map(|r| r.z.map(|z| (0.5 * (r.r_inner + r.r_outer), z)))
+                            .filter_map(|r| z_of(r).map(|z| (0.5 * (r.r_inner + r.r_outer), z)))
                             .collect(),
                         Style::Points,
                         k,
                     )
                 })
-                .collect();
+                .collect()
+        };
+        let z = z_series(&|r| Some(r.z_ballistic));
+        if g == 0.0 {
+            let z = z_series(&|r| r.z);
             plot(
                 &out.path("z_exact.png"),
                 "MC shell averages vs the exact solution: z-scores (total)",

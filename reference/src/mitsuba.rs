@@ -45,6 +45,7 @@ use crate::compare::ImageEstimate;
 use serde::Deserialize;
 use serde_json::{Value, json};
 use solvers::scene::{Camera, Light, Phase, Projection, Scene, VolError, VolGrid};
+use solvers::vec3::{cross, normalize, sub};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -245,21 +246,6 @@ impl MitsubaRender {
 /// A 4×4 row-major matrix as the script's transform marker.
 fn transform(m: [[f64; 4]; 4]) -> Value {
     json!({ "__transform__": m })
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-    a.map(|v| v / n)
 }
 
 /// Mitsuba's `look_at(eye, target, up)`: columns (left, up′, dir, eye) with

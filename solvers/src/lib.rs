@@ -27,6 +27,7 @@ pub mod noise;
 pub mod real;
 pub mod scene;
 pub mod scenes;
+pub mod vec3;
 
 pub use backend::{Backend, Precision};
 pub use error::SolverError;

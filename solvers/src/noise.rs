@@ -1,6 +1,15 @@
 //! Seeded, deterministic gradient (Perlin) noise and a small PRNG, so procedural scenes are
 //! reproducible bit for bit from a seed on every platform.
 
+/// The SplitMix64 finaliser (Steele, Lea, Flood 2014): a bijective 64-bit mixer, also used to
+/// hash (seed, path index) into the path tracer's per-path streams.
+#[inline(always)]
+pub fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 /// SplitMix64: a tiny, fast, well-mixed 64-bit generator (Steele, Lea, Flood 2014), used for
 /// procedural media and permutation tables. Not for Monte Carlo estimators.
 #[derive(Debug, Clone)]
@@ -15,10 +24,7 @@ impl SplitMix64 {
     /// Next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        mix64(self.0)
     }
 
     /// Uniform in [0, 1) with 53 random bits.

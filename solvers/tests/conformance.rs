@@ -75,6 +75,33 @@ fn solve(
     fld::solve(b, m, boundary, cfg, |_, _| {}).unwrap()
 }
 
+/// As [`solve`], asserting that the tolerance was reached.
+fn solve_converged(
+    b: &Backend<'_>,
+    m: &Medium<f64>,
+    boundary: &Boundary<f64>,
+    cfg: &FldConfig,
+) -> FldSolution<f64> {
+    let sol = solve(b, m, boundary, cfg);
+    assert!(
+        sol.converged(),
+        "{b} {}: {:?} after {}",
+        cfg.limiter,
+        sol.status,
+        sol.iterations
+    );
+    sol
+}
+
+/// Bound on the relative distance of a converged solution from the tight f64 one: f32 stops
+/// at R̄/j̄ < 10⁻⁴, f64 at 10⁻⁶.
+fn reference_bound(b: &Backend<'_>) -> f64 {
+    match b.precision() {
+        Precision::F32 => 2e-2,
+        Precision::F64 => 1e-4,
+    }
+}
+
 /// Largest relative difference of `a` from `reference` over voxels where the reference
 /// exceeds `floor` × its maximum: (value, index).
 fn max_rel_diff(a: &[f64], reference: &[f64], floor: f64) -> (f64, usize) {
@@ -102,13 +129,7 @@ fn point_source_cda_matches_eq_27(b: &Backend<'_>) {
     };
     let boundary = Boundary::from_fn(&g, |p| ps.fluence(Solution::Cda, dist(p)));
     let cfg = FldConfig::cda().with_omega(FldConfig::poisson_optimal_omega(n));
-    let sol = solve(b, &medium, &boundary, &cfg);
-    assert!(
-        sol.converged(),
-        "{b}: {:?} after {}",
-        sol.status,
-        sol.iterations
-    );
+    let sol = solve_converged(b, &medium, &boundary, &cfg);
     let mut shells = vec![(0.0, 0.0); n];
     for idx in 0..g.len() {
         let [i, j, k] = g.coords(idx);
@@ -137,13 +158,7 @@ fn point_source_fld_is_mirror_symmetric(b: &Backend<'_>) {
     let (medium, src) = scenes::point_source::<f64>(n, 4.0, 0.5).unwrap();
     let g = medium.grid;
     let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning).with_omega(1.6);
-    let sol = solve(b, &medium, &Boundary::Zero, &cfg);
-    assert!(
-        sol.converged(),
-        "{b}: {:?} after {}",
-        sol.status,
-        sol.iterations
-    );
+    let sol = solve_converged(b, &medium, &Boundary::Zero, &cfg);
     assert!(
         sol.phi.iter().all(|v| v.is_finite() && *v >= 0.0),
         "{b}: negative or non-finite φ"
@@ -188,29 +203,19 @@ fn reference(medium: &Medium<f64>, cfg: &FldConfig) -> Vec<f64> {
         .clone()
         .with_tolerance(1e-10)
         .with_max_iterations(200_000);
-    let sol = solve(
+    solve_converged(
         &Backend::Cpu(Precision::F64),
         medium,
         &Boundary::Zero,
         &tight,
-    );
-    assert!(
-        sol.converged(),
-        "reference did not converge: {:?}",
-        sol.status
-    );
-    sol.phi
+    )
+    .phi
 }
 
-/// Checks that a backend's converged φ is within `bound` (relative, where φ > 10⁻³ max φ)
+/// Checks that a backend's converged φ is within [`reference_bound`] (relative, where φ > 10⁻³ max φ)
 /// of the tight f64 solution.
-fn assert_close_to_reference(
-    b: &Backend<'_>,
-    what: &str,
-    phi: &[f64],
-    reference: &[f64],
-    bound: f64,
-) {
+fn assert_close_to_reference(b: &Backend<'_>, what: &str, phi: &[f64], reference: &[f64]) {
+    let bound = reference_bound(b);
     let (d, idx) = max_rel_diff(phi, reference, 1e-3);
     assert!(
         d <= bound,
@@ -228,18 +233,8 @@ fn vacuum_cloud_converges_to_the_f64_solution(b: &Backend<'_>) {
         .with_omega(1.9)
         .with_max_iterations(20_000);
     let reference = reference(&medium, &cfg);
-    let sol = solve(b, &medium, &Boundary::Zero, &cfg);
-    assert!(
-        sol.converged(),
-        "{b}: {:?} after {}",
-        sol.status,
-        sol.iterations
-    );
-    let bound = match b.precision() {
-        Precision::F32 => 2e-2,
-        Precision::F64 => 1e-4,
-    };
-    assert_close_to_reference(b, "vacuum cloud", &sol.phi, &reference, bound);
+    let sol = solve_converged(b, &medium, &Boundary::Zero, &cfg);
+    assert_close_to_reference(b, "vacuum cloud", &sol.phi, &reference);
 }
 
 /// White-noise medium (30 % vacuum, σt over 4 decades, albedo up to 1, sparse emission) on a
@@ -252,19 +247,8 @@ fn random_heterogeneous_converges_to_the_f64_solution(b: &Backend<'_>) {
     ] {
         let cfg = cfg.with_max_iterations(20_000);
         let reference = reference(&medium, &cfg);
-        let sol = solve(b, &medium, &Boundary::Zero, &cfg);
-        assert!(
-            sol.converged(),
-            "{b} {}: {:?} after {}",
-            cfg.limiter,
-            sol.status,
-            sol.iterations
-        );
-        let bound = match b.precision() {
-            Precision::F32 => 2e-2,
-            Precision::F64 => 1e-4,
-        };
-        assert_close_to_reference(b, &cfg.limiter.to_string(), &sol.phi, &reference, bound);
+        let sol = solve_converged(b, &medium, &Boundary::Zero, &cfg);
+        assert_close_to_reference(b, &cfg.limiter.to_string(), &sol.phi, &reference);
     }
 }
 

@@ -1,53 +1,6 @@
-//! Small 3-vector helpers on `[f64; 3]`.
+//! 3-vector helpers: the basic operations from [`solvers::vec3`], plus frames.
 
-/// A 3-vector.
-pub type Vec3 = [f64; 3];
-
-#[inline(always)]
-pub(crate) fn add(a: Vec3, b: Vec3) -> Vec3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-#[inline(always)]
-pub(crate) fn sub(a: Vec3, b: Vec3) -> Vec3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-#[inline(always)]
-pub(crate) fn scale(a: Vec3, s: f64) -> Vec3 {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-
-/// `o + t·d`.
-#[inline(always)]
-pub(crate) fn at(o: Vec3, d: Vec3, t: f64) -> Vec3 {
-    [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]]
-}
-
-#[inline(always)]
-pub(crate) fn dot(a: Vec3, b: Vec3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-#[inline(always)]
-pub(crate) fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-#[inline(always)]
-pub(crate) fn norm(a: Vec3) -> f64 {
-    dot(a, a).sqrt()
-}
-
-/// `a/|a|`; the caller guarantees `a ≠ 0`.
-#[inline(always)]
-pub(crate) fn normalize(a: Vec3) -> Vec3 {
-    scale(a, 1.0 / norm(a))
-}
+pub(crate) use solvers::vec3::*;
 
 /// Two unit vectors `(s, t)` completing the unit vector `n` to a right-handed orthonormal
 /// basis `(s, t, n)` (the branchless construction of Duff et al. 2017).

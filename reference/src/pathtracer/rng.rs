@@ -8,13 +8,7 @@
 //! Distinct increments select distinct LCG sequences, and hashed states put different paths
 //! far apart within them.
 
-/// The SplitMix64 finaliser (Steele, Lea, Flood 2014): a bijective 64-bit mixer.
-#[inline(always)]
-pub(crate) fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+use solvers::noise::mix64;
 
 const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
 const PCG_MULT: u128 = 0x2360_ED05_1FC6_5DA4_4385_DF64_9FCC_F645;

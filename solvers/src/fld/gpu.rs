@@ -237,8 +237,7 @@ impl<'a> GpuFld<'a> {
                         storage_buffer(d, name, bytemuck::cast_slice(&data))
                     })
                     .collect();
-                let mut st = vec![0u32; 4 + check_every as usize];
-                st[1] = 0;
+                let st = vec![0u32; 4 + check_every as usize];
                 let state = storage_buffer(d, "state", bytemuck::cast_slice(&st));
                 let partials =
                     storage_buffer(d, "partials", &vec![0u8; 8 * partials_per_color as usize]);
@@ -388,26 +387,12 @@ impl<'a> GpuFld<'a> {
             self.status = Some(Status::MaxIterations);
             return Ok(&self.residuals[start..]);
         }
-        let device = &self.ctx.device;
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("fld iterations"),
-        });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("fld iterations"),
-                timestamp_writes: self.timer.writes(),
-            });
-            self.record_iterations(&mut pass, n);
-        }
-        self.timer.resolve(&mut encoder);
-        let state_bytes = 16 + 4 * u64::from(self.check_every);
-        let mut reads = vec![(&self.state, state_bytes)];
-        if let Some(t) = self.timer.readback() {
-            reads.push((t, 16));
-        }
-        let out = self.ctx.submit_and_read(encoder, &reads)?;
-        self.timer.record(out.get(1).map(|v| v.as_slice()));
-        let words: Vec<u32> = out[0]
+        // Moved out for the call (a default timer allocates nothing) and put back.
+        let mut timer = std::mem::take(&mut self.timer);
+        let state = self.submit(n, &mut timer, true);
+        self.timer = timer;
+        let state = state?;
+        let words: Vec<u32> = state
             .chunks_exact(4)
             .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .collect();
@@ -433,25 +418,48 @@ impl<'a> GpuFld<'a> {
     /// is set the remaining iterations are no-ops, so run with tolerance 0 to time real work.
     pub fn time_iterations(&mut self, n: u32) -> Result<f64, SolverError> {
         let mut timer = PassTimer::new(self.ctx);
+        self.submit(n, &mut timer, false)?;
+        Ok(timer.seconds())
+    }
+
+    /// Records `n` iterations into one timed compute pass, submits, waits, adds the pass time
+    /// to `timer` and returns the state buffer's bytes if `read_state` (else an empty vector).
+    fn submit(
+        &self,
+        n: u32,
+        timer: &mut PassTimer,
+        read_state: bool,
+    ) -> Result<Vec<u8>, SolverError> {
         let mut encoder = self
             .ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("fld timed iterations"),
+                label: Some("fld iterations"),
             });
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("fld timed iterations"),
+                label: Some("fld iterations"),
                 timestamp_writes: timer.writes(),
             });
             self.record_iterations(&mut pass, n);
         }
         timer.resolve(&mut encoder);
-        let reads: Vec<(&wgpu::Buffer, u64)> =
-            timer.readback().map(|b| (b, 16)).into_iter().collect();
-        let out = self.ctx.submit_and_read(encoder, &reads)?;
-        timer.record(out.first().map(|v| v.as_slice()));
-        Ok(timer.seconds())
+        let state_bytes = 16 + 4 * u64::from(self.check_every);
+        let mut reads = Vec::new();
+        if read_state {
+            reads.push((&self.state, state_bytes));
+        }
+        if let Some(t) = timer.readback() {
+            reads.push((t, 16));
+        }
+        let mut out = self.ctx.submit_and_read(encoder, &reads)?;
+        let stamps = if timer.readback().is_some() {
+            out.pop()
+        } else {
+            None
+        };
+        timer.record(stamps.as_deref());
+        Ok(out.pop().unwrap_or_default())
     }
 
     /// Bytes one iteration must move at least (as [`CpuFld::bytes_per_iteration`] in f32:

@@ -435,7 +435,8 @@ impl GpuContext {
 
 /// Times compute passes: GPU timestamps when the device has them, else the wall clock
 /// around submit-and-wait (which includes submission and synchronisation overhead).
-#[derive(Debug)]
+/// `PassTimer::default()` is a wall-clock timer that holds no GPU resources.
+#[derive(Debug, Default)]
 pub struct PassTimer {
     queries: Option<(wgpu::QuerySet, wgpu::Buffer)>,
     period_ns: f64,

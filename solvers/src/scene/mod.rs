@@ -11,6 +11,7 @@
 //! Field values are constant over each voxel (cell-centred samples, piecewise constant); a
 //! consumer that interpolates instead must say so.
 
+use crate::vec3::{cross, norm, sub};
 use crate::{Medium, SolverError};
 
 pub mod file;
@@ -288,22 +289,6 @@ impl Scene {
         }
         Ok(())
     }
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 #[cfg(test)]
