@@ -24,6 +24,7 @@ pub mod gpu;
 pub mod grid;
 pub mod medium;
 pub mod noise;
+pub mod pipeline;
 pub mod real;
 pub mod scene;
 pub mod scenes;

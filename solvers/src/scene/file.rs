@@ -50,6 +50,7 @@
 //! `emission` fills every voxel of the box, vacuum ones included (j is a source per volume
 //! whatever σt is); `.vol` data are `f32`, so writing a scene rounds its fields to `f32`.
 
+use super::effects::{EffectPattern, EffectSelection};
 use super::generators::{self, GeneratorError};
 use super::vol::{VolError, VolGrid};
 use super::{Camera, Light, Phase, Projection, Sampler, Scene};
@@ -149,6 +150,36 @@ pub struct SceneFile {
     pub outputs: Vec<OutputKind>,
     /// Free-text description.
     pub description: Option<String>,
+    /// The `[effects]` restriction (default: none; see [`super::effects`]).
+    pub effects: EffectSelection,
+    /// Per-channel (R, G, B) media of a coloured scene, `None` for a monochrome one; see
+    /// [`SceneFile::channels`].
+    pub colour: Option<Box<[Medium<f64>; 3]>>,
+}
+
+impl SceneFile {
+    /// The scene per colour channel: one monochrome scene, or three (R, G, B) that differ
+    /// only in their medium. RGB is rendered as three independent monochrome transport
+    /// problems (lights are white: the same light in every channel), so every renderer — the
+    /// grid pipeline and the path tracer — handles colour by rendering each channel.
+    ///
+    /// A coloured scene comes from a generator with per-channel fields (e.g. `plume`'s
+    /// blackbody emission) and/or from `[medium]` scale triplets `sigma_t_rgb`,
+    /// `albedo_rgb`, `emission_rgb`, which multiply σt, albedo and j per channel (the
+    /// albedo product must stay ≤ 1). [`SceneFile::scene`] is then the unscaled
+    /// monochrome medium.
+    pub fn channels(&self) -> Vec<Scene> {
+        match &self.colour {
+            None => vec![self.scene.clone()],
+            Some(ch) => ch
+                .iter()
+                .map(|m| Scene {
+                    medium: m.clone(),
+                    ..self.scene.clone()
+                })
+                .collect(),
+        }
+    }
 }
 
 /// Loads the scene of the file at `path` (shorthand for [`SceneFile::load`]).
@@ -181,6 +212,17 @@ struct Doc {
     sampler: Option<SamplerDoc>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     outputs: Option<OutputsDoc>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    effects: Option<EffectsDoc>,
+}
+
+#[derive(Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+struct EffectsDoc {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    only: Option<Vec<String>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    exclude: Option<Vec<String>>,
 }
 
 #[derive(Debug, Default, Deserialize, Serialize)]
@@ -202,6 +244,16 @@ struct MediumDoc {
     min: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     max: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sigma_t_rgb: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    albedo_rgb: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    emission_rgb: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    vdb: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    grid: Option<String>,
 }
 
 #[derive(Debug, Deserialize, Serialize)]
@@ -493,7 +545,7 @@ impl SceneFile {
             dir,
             text,
         };
-        let medium = cx.medium(&doc.medium)?;
+        let (medium, colour) = cx.medium(&doc.medium)?;
         let phase = cx.phase(doc.phase.as_ref())?;
         let lights = doc
             .lights
@@ -548,10 +600,13 @@ impl SceneFile {
             sampler,
         };
         scene.validate().map_err(|e| loc.err("", e.to_string()))?;
+        let effects = cx.effects(doc.effects.as_ref(), scene.lights.len())?;
         Ok(Self {
             scene,
             outputs,
             description: doc.description,
+            effects,
+            colour,
         })
     }
 }
@@ -618,10 +673,28 @@ impl Cx<'_> {
         }
     }
 
-    fn medium(&self, m: &MediumDoc) -> Result<Medium<f64>, SceneFileError> {
+    /// The monochrome medium and, for a coloured scene, the three channel media.
+    #[allow(clippy::type_complexity)]
+    fn medium(
+        &self,
+        m: &MediumDoc,
+    ) -> Result<(Medium<f64>, Option<Box<[Medium<f64>; 3]>>), SceneFileError> {
         let loc = self.loc;
+        if m.vdb.is_none() && m.grid.is_some() {
+            return Err(loc.err("medium.grid", "`grid` names a grid of a `vdb` file"));
+        }
+        let sources = [m.generator.is_some(), m.file.is_some(), m.vdb.is_some()];
+        if sources.iter().filter(|&&b| b).count() > 1 {
+            let field = if m.vdb.is_some() {
+                "medium.vdb"
+            } else {
+                "medium.file"
+            };
+            return Err(loc.err(field, "give one of `generator`, `file` or `vdb`, not both"));
+        }
+        let mut base_channels = None;
         // The base medium: a generator's or σt from a file.
-        let (base, density_field) = match (&m.generator, &m.file) {
+        let (base, density_field) = match (&m.generator, m.file.as_ref().or(m.vdb.as_ref())) {
             (Some(_), Some(_)) => {
                 return Err(loc.err("medium.file", "give either `generator` or `file`, not both"));
             }
@@ -655,7 +728,41 @@ impl Cx<'_> {
                         loc.err("medium.params", format!("generator `{name}`: {e}"))
                     }
                 })?;
+                base_channels = entry
+                    .build_channels_from_document(self.text)
+                    .map_err(|e| loc.err("medium.params", format!("generator `{name}`: {e}")))?;
                 (medium, "medium.params")
+            }
+            (None, Some(_)) if m.vdb.is_some() => {
+                let rel = m.vdb.as_deref().unwrap_or_default();
+                if m.params.is_some() {
+                    return Err(loc.err(
+                        "medium.params",
+                        "parameters belong to a `generator`; this medium reads `vdb`",
+                    ));
+                }
+                let grid_name = m.grid.as_deref().unwrap_or("density");
+                let path = self.dir.join(rel);
+                let (dims, sigma_t) = super::vdb::read_float_grid(&path, grid_name)
+                    .map_err(|e| loc.err("medium.vdb", e.to_string()))?;
+                let grid = Grid::new(dims, 1.0 / dims.into_iter().max().unwrap_or(1) as f64)
+                    .map_err(|e| loc.err("medium.vdb", format!("`{rel}`: {e}")))?;
+                let n = grid.len();
+                if m.albedo.is_none() {
+                    return Err(loc.err(
+                        "medium.albedo",
+                        "required with `vdb`: a number in [0, 1] or a .vol path",
+                    ));
+                }
+                (
+                    Medium {
+                        grid,
+                        sigma_t,
+                        albedo: vec![0.0; n],
+                        emission: vec![0.0; n],
+                    },
+                    "medium.vdb",
+                )
             }
             (None, Some(rel)) => {
                 if m.params.is_some() {
@@ -690,6 +797,65 @@ impl Cx<'_> {
                 (medium, "medium.file")
             }
         };
+        let mono = self.overrides(m, base, density_field)?;
+        let mut channels = match base_channels {
+            Some(ch) => {
+                let [r, g, b] = ch;
+                Some([
+                    self.overrides(m, r, density_field)?,
+                    self.overrides(m, g, density_field)?,
+                    self.overrides(m, b, density_field)?,
+                ])
+            }
+            None => None,
+        };
+        let scales = [
+            ("medium.sigma_t_rgb", m.sigma_t_rgb),
+            ("medium.albedo_rgb", m.albedo_rgb),
+            ("medium.emission_rgb", m.emission_rgb),
+        ];
+        if scales.iter().any(|(_, v)| v.is_some()) {
+            for (field, v) in scales {
+                if let Some(v) = v {
+                    if v.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+                        return Err(loc.err(field, "channel scales must be finite and >= 0"));
+                    }
+                }
+            }
+            let mut ch = channels.unwrap_or_else(|| [mono.clone(), mono.clone(), mono.clone()]);
+            for (c, medium) in ch.iter_mut().enumerate() {
+                let scale = |v: Option<[f64; 3]>| v.map_or(1.0, |v| v[c]);
+                let (s, a, e) = (
+                    scale(m.sigma_t_rgb),
+                    scale(m.albedo_rgb),
+                    scale(m.emission_rgb),
+                );
+                medium.sigma_t.iter_mut().for_each(|x| *x *= s);
+                medium.albedo.iter_mut().for_each(|x| *x *= a);
+                medium.emission.iter_mut().for_each(|x| *x *= e);
+                medium.validate().map_err(|e| match e {
+                    SolverError::FieldValue {
+                        field: "albedo", ..
+                    } => loc.err(
+                        "medium.albedo_rgb",
+                        format!("channel {c}: {e} (albedo times its channel scale must stay <= 1)"),
+                    ),
+                    e => loc.err("medium", format!("channel {c}: {e}")),
+                })?;
+            }
+            channels = Some(ch);
+        }
+        Ok((mono, channels.map(Box::new)))
+    }
+
+    /// Applies the box, density scale, albedo and emission keys of `[medium]` to `base`.
+    fn overrides(
+        &self,
+        m: &MediumDoc,
+        base: Medium<f64>,
+        density_field: &str,
+    ) -> Result<Medium<f64>, SceneFileError> {
+        let loc = self.loc;
         let Medium {
             mut grid,
             mut sigma_t,
@@ -782,6 +948,50 @@ impl Cx<'_> {
                 loc.err(&format!("medium.{field}"), e.to_string())
             }
             e => loc.err("medium", e.to_string()),
+        })
+    }
+
+    fn effects(
+        &self,
+        e: Option<&EffectsDoc>,
+        lights: usize,
+    ) -> Result<EffectSelection, SceneFileError> {
+        let Some(e) = e else {
+            return Ok(EffectSelection::all());
+        };
+        let list = |key: &str, names: &[String]| -> Result<Vec<EffectPattern>, SceneFileError> {
+            names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| {
+                    let field = format!("effects.{key}[{i}]");
+                    let p: EffectPattern =
+                        n.parse().map_err(|e: super::effects::EffectsError| {
+                            self.loc.err(&field, e.to_string())
+                        })?;
+                    if let EffectPattern::SingleScattering(Some(index)) = p {
+                        if index >= lights {
+                            return Err(self.loc.err(
+                                &field,
+                                format!(
+                                    "the scene has {lights} light(s), so there is no light {index}"
+                                ),
+                            ));
+                        }
+                    }
+                    if key == "exclude" && p == EffectPattern::Attenuation {
+                        return Err(self.loc.err(
+                            &field,
+                            super::effects::EffectsError::AttenuationExcluded.to_string(),
+                        ));
+                    }
+                    Ok(p)
+                })
+                .collect()
+        };
+        Ok(EffectSelection {
+            only: e.only.as_deref().map(|o| list("only", o)).transpose()?,
+            exclude: list("exclude", e.exclude.as_deref().unwrap_or_default())?,
         })
     }
 
@@ -970,7 +1180,18 @@ impl SceneFile {
     /// Writes the scene as a format-1 file at `path`, with its voxel fields as `.vol` files
     /// beside it (`<stem>.sigma_t.vol`, and `<stem>.albedo.vol` / `<stem>.emission.vol`
     /// unless the field is constant). Fields are rounded to `f32` by the `.vol` format.
+    /// Coloured scenes (see [`SceneFile::channels`]) cannot be written yet: the `.vol`
+    /// reader takes one channel; they are an error naming `medium`.
     pub fn write(&self, path: &Path) -> Result<(), SceneFileError> {
+        if self.colour.is_some() {
+            return Err(SceneFileError::Invalid {
+                file: path.to_path_buf(),
+                field: "medium".into(),
+                line: None,
+                column: None,
+                problem: "writing coloured (RGB) scenes is not supported".into(),
+            });
+        }
         let dir = path.parent().unwrap_or(Path::new("."));
         let stem = path
             .file_stem()
@@ -1051,6 +1272,15 @@ impl SceneFile {
             }),
             outputs: Some(OutputsDoc {
                 write: self.outputs.iter().map(|o| o.name().to_string()).collect(),
+            }),
+            effects: (self.effects != EffectSelection::all()).then(|| EffectsDoc {
+                only: self
+                    .effects
+                    .only
+                    .as_ref()
+                    .map(|o| o.iter().map(|p| p.to_string()).collect()),
+                exclude: (!self.effects.exclude.is_empty())
+                    .then(|| self.effects.exclude.iter().map(|p| p.to_string()).collect()),
             }),
         };
         let text = toml::to_string(&doc).map_err(|e| SceneFileError::Invalid {

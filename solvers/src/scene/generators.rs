@@ -18,7 +18,14 @@ pub trait Generator: DeserializeOwned {
     const DESCRIPTION: &'static str;
     /// Builds the medium (on the generator's own box; a scene file may move and scale it).
     fn generate(&self) -> Result<Medium<f64>, SolverError>;
+    /// Per-channel (R, G, B) media of a coloured dataset; `None` (the default) for a
+    /// monochrome generator. The channels share [`Generator::generate`]'s grid.
+    fn generate_channels(&self) -> Result<Option<[Medium<f64>; 3]>, SolverError> {
+        Ok(None)
+    }
 }
+
+type Channels = Option<[Medium<f64>; 3]>;
 
 /// Why a generator could not build its medium.
 #[derive(Debug, Clone, PartialEq)]
@@ -49,6 +56,7 @@ pub struct GeneratorEntry {
     /// One line of description.
     pub description: &'static str,
     build: fn(&str) -> Result<Medium<f64>, GeneratorError>,
+    build_channels: fn(&str) -> Result<Channels, GeneratorError>,
 }
 
 impl GeneratorEntry {
@@ -58,7 +66,14 @@ impl GeneratorEntry {
             name: G::NAME,
             description: G::DESCRIPTION,
             build: build_from_document::<G>,
+            build_channels: build_channels_from_document::<G>,
         }
+    }
+
+    /// The per-channel media of a coloured generator (`None` for a monochrome one), from
+    /// the document's `[medium.params]`.
+    pub fn build_channels_from_document(&self, document: &str) -> Result<Channels, GeneratorError> {
+        (self.build_channels)(document)
     }
 
     /// Builds the medium from the `[medium.params]` table of the TOML document `document`
@@ -116,13 +131,24 @@ fn none<G>() -> Option<G> {
     None
 }
 
-fn build_from_document<G: Generator>(document: &str) -> Result<Medium<f64>, GeneratorError> {
+fn params_of<G: Generator>(document: &str) -> Result<G, GeneratorError> {
     let doc: ParamsDoc<G> = toml::from_str(document).map_err(GeneratorError::Params)?;
-    let params = match doc.medium.params {
-        Some(p) => p,
-        None => toml::from_str::<G>("").map_err(GeneratorError::Params)?,
-    };
-    params.generate().map_err(GeneratorError::Solver)
+    match doc.medium.params {
+        Some(p) => Ok(p),
+        None => toml::from_str::<G>("").map_err(GeneratorError::Params),
+    }
+}
+
+fn build_from_document<G: Generator>(document: &str) -> Result<Medium<f64>, GeneratorError> {
+    params_of::<G>(document)?
+        .generate()
+        .map_err(GeneratorError::Solver)
+}
+
+fn build_channels_from_document<G: Generator>(document: &str) -> Result<Channels, GeneratorError> {
+    params_of::<G>(document)?
+        .generate_channels()
+        .map_err(GeneratorError::Solver)
 }
 
 /// [`scenes::vacuum_cloud`]: FLD Fig 4's spherical cloud with Perlin-noise emission, on the

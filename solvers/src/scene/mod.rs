@@ -14,10 +14,14 @@
 use crate::vec3::{cross, norm, sub};
 use crate::{Medium, SolverError};
 
+pub mod datasets;
+pub mod effects;
 pub mod file;
 pub mod generators;
+pub mod vdb;
 pub mod vol;
 
+pub use effects::{Effect, EffectPattern, EffectSelection, Effects, EffectsError};
 pub use file::{OutputKind, SceneFile, SceneFileError, load_scene};
 pub use vol::{VolError, VolGrid};
 

@@ -1,0 +1,492 @@
+//! The rendering pipeline of FLD Fig 2, driven by the effects a scene calls for.
+//!
+//! 1. **Light baking** ([`bake`]): per directional or point light a deep shadow map and the
+//!    source q_ri = σs·L_ri (FLD Eq 6). CPU (rayon).
+//! 2. **Multiple scattering** (`diffusion_solve`): CDA or FLD ([`crate::fld::solve`], on the
+//!    caller's [`Backend`]: CPU f32/f64 or GPU) for φ with source q_ri + j, on the grid
+//!    restricted by [`PipelineConfig::downsample`] (the paper uses 4; see [`restrict`] for
+//!    the conservative restriction) and padded by [`PipelineConfig::pad`] vacuum voxels.
+//! 3. **Primary raymarch** ([`raymarch`], FLD Eq 3 with the source of FLD Eq 8): single
+//!    scattering with the scene's phase function, σs φ/4π with φ upsampled trilinearly,
+//!    and j/4π, as three separate images. CPU (rayon).
+//!
+//! [`planner`] turns the effect set (implied by the scene, restricted by its `[effects]`
+//! table and by [`PipelineConfig::effects`]) into the minimal list of passes; every render
+//! returns the plan and the passes that ran, with their wall-clock seconds.
+//!
+//! **Colour.** RGB is three independent monochrome problems
+//! ([`crate::scene::SceneFile::channels`]); [`render_channels`] plans once for the union of
+//! the channels' effects and runs every pass per channel.
+//!
+//! **Components and scattering orders** (what the path tracer must render to compare, see
+//! [`crate::scene::effects`]): `single` = order 1 from lights; `multiple` = orders ≥ 2 from
+//! lights plus orders ≥ 1 from emission (φ is sourced by q_ri + j, FLD Eq 12); `emission` =
+//! order-0 emission. `total` is their sum. Images are radiance in physical units
+//! (power per area per steradian), row-major, top-left first.
+//!
+//! **Anisotropy.** Only single scattering sees the phase function; the diffusion is
+//! isotropic, with the medium as given (no similarity scaling), as in the paper.
+
+pub mod bake;
+pub mod geometry;
+pub mod image;
+pub mod planner;
+pub mod raymarch;
+pub mod restrict;
+
+pub use planner::{Pass, Plan, Planned, Skipped};
+
+use crate::fld::{Boundary, FldConfig, FluxLimiter, Status};
+use crate::scene::{EffectSelection, Effects, EffectsError, Scene, SceneFile};
+use crate::{Backend, SolverError};
+use bake::BakedLight;
+use raymarch::Term;
+use serde::Serialize;
+use std::fmt;
+use std::str::FromStr;
+use std::time::Instant;
+use thiserror::Error;
+
+/// Errors of the pipeline.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum PipelineError {
+    /// A solver or parameter error.
+    #[error(transparent)]
+    Solver(#[from] SolverError),
+    /// An invalid effect selection.
+    #[error(transparent)]
+    Effects(#[from] EffectsError),
+    /// The scene has no camera.
+    #[error("the scene has no [camera]; the pipeline renders camera images")]
+    NoCamera,
+    /// A light the plan needs is of a kind the grid pipeline cannot bake.
+    #[error(
+        "light {index} is a {kind} light, which the grid pipeline does not support (directional and point lights only); exclude its effects or use the path tracer"
+    )]
+    UnsupportedLight {
+        /// Index of the light.
+        index: usize,
+        /// Its kind.
+        kind: &'static str,
+    },
+    /// No channels, or channels that differ in more than their medium's values.
+    #[error("colour channels must be 1 or 3 scenes that differ only in their medium values: {0}")]
+    Channels(String),
+}
+
+/// The multiple-scattering method.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DiffusionMethod {
+    /// Classical diffusion.
+    Cda,
+    /// Flux-limited diffusion with this limiter.
+    Fld(FluxLimiter),
+}
+
+impl fmt::Display for DiffusionMethod {
+    /// `cda` or `fld:<limiter>` (e.g. `fld:lp`).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DiffusionMethod::Cda => write!(f, "cda"),
+            DiffusionMethod::Fld(l) => write!(f, "fld:{l}"),
+        }
+    }
+}
+
+impl FromStr for DiffusionMethod {
+    type Err = SolverError;
+    /// `cda`, `fld` (Levermore–Pomraning, the paper's choice) or `fld:<limiter>`.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim() {
+            "cda" => Ok(DiffusionMethod::Cda),
+            "fld" => Ok(DiffusionMethod::Fld(FluxLimiter::LevermorePomraning)),
+            t => match t.strip_prefix("fld:") {
+                Some(l) => Ok(DiffusionMethod::Fld(l.parse()?)),
+                None => Err(SolverError::Unsupported(format!(
+                    "unknown method `{t}`; expected cda, fld or fld:<limiter>"
+                ))),
+            },
+        }
+    }
+}
+
+impl DiffusionMethod {
+    /// The flux limiter of the solve (CDA: the constant 1/3).
+    pub fn limiter(&self) -> FluxLimiter {
+        match self {
+            DiffusionMethod::Cda => FluxLimiter::Cda,
+            DiffusionMethod::Fld(l) => *l,
+        }
+    }
+}
+
+/// Settings of a render.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PipelineConfig {
+    /// CDA or FLD.
+    pub method: DiffusionMethod,
+    /// Grid downsampling factor of the diffusion solve (≥ 1; the paper's is 4).
+    pub downsample: usize,
+    /// Vacuum voxels added around the restricted grid (its outermost layer is the Dirichlet
+    /// φ = 0 boundary). Default 1.
+    pub pad: usize,
+    /// Solver settings; its `limiter` is replaced by `method`'s.
+    pub fld: FldConfig,
+    /// Raymarch sub-step as a fraction of the voxel edge Δl (default 0.5).
+    pub step: f64,
+    /// Stratified ray positions per pixel and axis (default 1: the pixel centre).
+    pub pixel_samples: usize,
+    /// A further restriction of the effects (applied after the scene file's).
+    pub effects: EffectSelection,
+}
+
+impl Default for PipelineConfig {
+    fn default() -> Self {
+        Self {
+            method: DiffusionMethod::Fld(FluxLimiter::LevermorePomraning),
+            downsample: 4,
+            pad: 1,
+            fld: FldConfig::default(),
+            step: 0.5,
+            pixel_samples: 1,
+            effects: EffectSelection::all(),
+        }
+    }
+}
+
+impl PipelineConfig {
+    /// Checks every parameter.
+    pub fn validate(&self) -> Result<(), PipelineError> {
+        if self.downsample == 0 {
+            return Err(SolverError::BadParameter {
+                name: "downsample",
+                value: 0.0,
+                reason: "must be at least 1",
+            }
+            .into());
+        }
+        if !(self.step.is_finite() && self.step > 0.0) {
+            return Err(SolverError::BadParameter {
+                name: "step",
+                value: self.step,
+                reason: "the raymarch step (fraction of a voxel) must be finite and > 0",
+            }
+            .into());
+        }
+        if self.pixel_samples == 0 {
+            return Err(SolverError::BadParameter {
+                name: "pixel_samples",
+                value: 0.0,
+                reason: "must be at least 1",
+            }
+            .into());
+        }
+        self.fld.validate()?;
+        Ok(())
+    }
+}
+
+/// The images of one colour channel: radiance per pixel, row-major.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChannelImages {
+    /// single + multiple + emission.
+    pub total: Vec<f64>,
+    /// Order 1 from lights.
+    pub single: Vec<f64>,
+    /// Orders ≥ 2 from lights, orders ≥ 1 from emission.
+    pub multiple: Vec<f64>,
+    /// Order-0 emission.
+    pub emission: Vec<f64>,
+}
+
+/// A pass that ran.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PassRecord {
+    /// [`Pass::name`].
+    pub name: String,
+    /// Colour channel (0 for monochrome).
+    pub channel: usize,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// What the diffusion solve of one channel did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DiffusionRecord {
+    /// Colour channel.
+    pub channel: usize,
+    /// The solve grid (restricted and padded).
+    pub grid: [usize; 3],
+    /// Its voxel edge.
+    pub dl: f64,
+    /// Iterations run.
+    pub iterations: usize,
+    /// Final normalised residual R̄/j̄.
+    pub final_residual: f64,
+    /// `converged`, `max_iterations` or `non_finite`.
+    pub status: String,
+    /// Seconds of the iterations (solver's own timer).
+    pub solve_seconds: f64,
+    /// Backend, e.g. `cpu-f64`.
+    pub backend: String,
+}
+
+/// A rendered scene.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Rendered {
+    /// Pixels per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// One entry per colour channel (1 or 3).
+    pub channels: Vec<ChannelImages>,
+    /// The plan.
+    pub plan: Plan,
+    /// The passes that ran, in order, per channel.
+    pub passes_run: Vec<PassRecord>,
+    /// The diffusion solves (empty if none ran).
+    pub diffusion: Vec<DiffusionRecord>,
+}
+
+impl Rendered {
+    /// Total seconds of the passes named `name` over all channels.
+    pub fn seconds_of(&self, name: &str) -> f64 {
+        self.passes_run
+            .iter()
+            .filter(|p| p.name == name)
+            .map(|p| p.seconds)
+            .sum()
+    }
+
+    /// Total seconds of all passes.
+    pub fn total_seconds(&self) -> f64 {
+        self.passes_run.iter().map(|p| p.seconds).sum()
+    }
+}
+
+/// Renders a monochrome scene with its implied effects, restricted by `config.effects`.
+pub fn render(
+    scene: &Scene,
+    config: &PipelineConfig,
+    backend: &Backend<'_>,
+) -> Result<Rendered, PipelineError> {
+    render_channels(
+        std::slice::from_ref(scene),
+        &EffectSelection::all(),
+        config,
+        backend,
+    )
+}
+
+/// Renders a scene file: every colour channel, with the file's `[effects]` restriction and
+/// then `config.effects`.
+pub fn render_file(
+    file: &SceneFile,
+    config: &PipelineConfig,
+    backend: &Backend<'_>,
+) -> Result<Rendered, PipelineError> {
+    render_channels(&file.channels(), &file.effects, config, backend)
+}
+
+/// The effects the channels imply (union), and those rendered after `selection` and
+/// `config.effects`.
+pub fn effects_of(
+    channels: &[Scene],
+    selection: &EffectSelection,
+    config: &PipelineConfig,
+) -> Result<(Effects, Effects), PipelineError> {
+    let first = channels
+        .first()
+        .ok_or_else(|| PipelineError::Channels("no channels".into()))?;
+    let lights = first.lights.len();
+    let implied = channels
+        .iter()
+        .fold(Effects::none(), |acc, s| acc.union(&s.implied_effects()));
+    let effects = implied
+        .restrict(selection, lights)?
+        .restrict(&config.effects, lights)?;
+    Ok((implied, effects))
+}
+
+/// The plan of a render, without running it (for `--explain`).
+pub fn plan_channels(
+    channels: &[Scene],
+    selection: &EffectSelection,
+    config: &PipelineConfig,
+) -> Result<Plan, PipelineError> {
+    config.validate()?;
+    let (implied, effects) = effects_of(channels, selection, config)?;
+    planner::plan(
+        &channels[0].lights,
+        &implied,
+        &effects,
+        &config.method.to_string(),
+        config.downsample,
+    )
+}
+
+/// Renders 1 or 3 colour channels (scenes that differ only in their medium values) with
+/// the effects they imply, restricted by `selection` and then `config.effects`.
+pub fn render_channels(
+    channels: &[Scene],
+    selection: &EffectSelection,
+    config: &PipelineConfig,
+    backend: &Backend<'_>,
+) -> Result<Rendered, PipelineError> {
+    check_channels(channels)?;
+    let plan = plan_channels(channels, selection, config)?;
+    let camera = channels[0].camera.ok_or(PipelineError::NoCamera)?;
+    let [width, height] = camera.resolution;
+    let npix = width * height;
+    let mut passes_run = Vec::new();
+    let mut diffusion = Vec::new();
+    let mut images = Vec::new();
+    for (c, scene) in channels.iter().enumerate() {
+        let medium = &scene.medium;
+        let phase = plan.effects.apply_phase(scene.phase);
+        let mut baked: Vec<BakedLight> = Vec::new();
+        let mut phi: Option<(crate::Grid, Vec<f64>)> = None;
+        let mut img = ChannelImages {
+            total: vec![0.0; npix],
+            single: vec![0.0; npix],
+            multiple: vec![0.0; npix],
+            emission: vec![0.0; npix],
+        };
+        for planned in &plan.passes {
+            let t0 = Instant::now();
+            match &planned.pass {
+                Pass::BakeDirectional { light } | Pass::BakePoint { light } => {
+                    let b = bake::bake(medium, *light, &scene.lights[*light]).ok_or(
+                        PipelineError::UnsupportedLight {
+                            index: *light,
+                            kind: "non-bakeable",
+                        },
+                    )?;
+                    baked.push(b);
+                }
+                Pass::DiffusionSolve {
+                    with_emission,
+                    downsample,
+                    ..
+                } => {
+                    let mut q = bake::q_ri(medium, &baked);
+                    if *with_emission {
+                        q.iter_mut()
+                            .zip(&medium.emission)
+                            .for_each(|(q, j)| *q += j);
+                    }
+                    let coarse = restrict::restrict(medium, &q, *downsample, config.pad)?;
+                    let fld = FldConfig {
+                        limiter: config.method.limiter(),
+                        ..config.fld.clone()
+                    };
+                    let sol =
+                        crate::fld::solve(backend, &coarse, &Boundary::Zero, &fld, |_, _| {})?;
+                    diffusion.push(DiffusionRecord {
+                        channel: c,
+                        grid: coarse.grid.n,
+                        dl: coarse.grid.dl,
+                        iterations: sol.iterations,
+                        final_residual: sol.final_residual(),
+                        status: match sol.status {
+                            Status::Converged => "converged",
+                            Status::MaxIterations => "max_iterations",
+                            Status::NonFinite => "non_finite",
+                        }
+                        .into(),
+                        solve_seconds: sol.seconds,
+                        backend: backend.to_string(),
+                    });
+                    phi = Some((coarse.grid, sol.phi));
+                }
+                Pass::RaymarchSingle { lights, .. } => {
+                    let ls: Vec<BakedLight> = baked
+                        .iter()
+                        .filter(|b| lights.contains(&b.index))
+                        .cloned()
+                        .collect();
+                    img.single = raymarch::render_term(
+                        medium,
+                        &camera,
+                        Term::Single { lights: &ls, phase },
+                        config.step,
+                        config.pixel_samples,
+                    );
+                }
+                Pass::RaymarchMultiple => {
+                    if let Some((grid, phi)) = &phi {
+                        img.multiple = raymarch::render_term(
+                            medium,
+                            &camera,
+                            Term::Multiple { grid, phi },
+                            config.step,
+                            config.pixel_samples,
+                        );
+                    }
+                }
+                Pass::RaymarchEmission => {
+                    img.emission = raymarch::render_term(
+                        medium,
+                        &camera,
+                        Term::Emission,
+                        config.step,
+                        config.pixel_samples,
+                    );
+                }
+            }
+            passes_run.push(PassRecord {
+                name: planned.pass.name(),
+                channel: c,
+                seconds: t0.elapsed().as_secs_f64(),
+            });
+        }
+        let runs = |n: &str| plan.runs(n);
+        for p in 0..npix {
+            let mut t = 0.0;
+            if runs("raymarch_single") {
+                t += img.single[p];
+            }
+            if runs("raymarch_multiple") {
+                t += img.multiple[p];
+            }
+            if runs("raymarch_emission") {
+                t += img.emission[p];
+            }
+            img.total[p] = t;
+        }
+        images.push(img);
+    }
+    Ok(Rendered {
+        width,
+        height,
+        channels: images,
+        plan,
+        passes_run,
+        diffusion,
+    })
+}
+
+fn check_channels(channels: &[Scene]) -> Result<(), PipelineError> {
+    let Some(first) = channels.first() else {
+        return Err(PipelineError::Channels("no channels".into()));
+    };
+    if channels.len() != 1 && channels.len() != 3 {
+        return Err(PipelineError::Channels(format!(
+            "{} channels",
+            channels.len()
+        )));
+    }
+    for (c, s) in channels.iter().enumerate() {
+        s.validate()?;
+        if s.medium.grid != first.medium.grid
+            || s.lights != first.lights
+            || s.camera != first.camera
+            || s.phase != first.phase
+        {
+            return Err(PipelineError::Channels(format!(
+                "channel {c} differs from channel 0 in grid, lights, camera or phase"
+            )));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,287 @@
+//! Effect-driven planning: the minimal list of passes that renders an effect set.
+//!
+//! | pass | runs when |
+//! |---|---|
+//! | `bake_directional[i]` / `bake_point[i]` | single scattering of light i is in the set, or multiple scattering is (every light sources q_ri) |
+//! | `diffusion_solve` | multiple scattering is in the set (source q_ri of the baked lights, plus j if emission is in the set) |
+//! | `raymarch_single` | single scattering of at least one light is in the set (isotropic fast path unless anisotropy is) |
+//! | `raymarch_multiple` | multiple scattering is in the set |
+//! | `raymarch_emission` | emission is in the set |
+//!
+//! Nothing else runs: no baking without lights whose light is needed, no diffusion solve when
+//! nothing scatters or multiple scattering is excluded, no emission pass without emission.
+//! An empty plan renders a black image without running anything.
+
+use super::PipelineError;
+use crate::scene::{Effect, Effects, Light};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// One pass of the pipeline.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Pass {
+    /// Deep shadow map and q_ri of directional light `light`.
+    BakeDirectional {
+        /// Light index.
+        light: usize,
+    },
+    /// Deep shadow map (with 1/r²) and q_ri of point light `light`.
+    BakePoint {
+        /// Light index.
+        light: usize,
+    },
+    /// The diffusion solve for φ (FLD Eq 12 / Eq 20).
+    DiffusionSolve {
+        /// `cda` or `fld:<limiter>`.
+        method: String,
+        /// Downsampling factor of the grid.
+        downsample: usize,
+        /// Whether j is part of the source (emission in the set).
+        with_emission: bool,
+        /// Lights whose q_ri is part of the source.
+        lights: Vec<usize>,
+    },
+    /// Primary raymarch of single scattering.
+    RaymarchSingle {
+        /// Lights whose single scattering is rendered.
+        lights: Vec<usize>,
+        /// Isotropic fast path (g = 0 or anisotropy not in the set).
+        isotropic: bool,
+    },
+    /// Primary raymarch of σs φ/4π.
+    RaymarchMultiple,
+    /// Primary raymarch of j/4π.
+    RaymarchEmission,
+}
+
+impl Pass {
+    /// Short name: `bake_directional[0]`, `diffusion_solve`, `raymarch_single`, …
+    pub fn name(&self) -> String {
+        match self {
+            Pass::BakeDirectional { light } => format!("bake_directional[{light}]"),
+            Pass::BakePoint { light } => format!("bake_point[{light}]"),
+            Pass::DiffusionSolve { .. } => "diffusion_solve".into(),
+            Pass::RaymarchSingle { .. } => "raymarch_single".into(),
+            Pass::RaymarchMultiple => "raymarch_multiple".into(),
+            Pass::RaymarchEmission => "raymarch_emission".into(),
+        }
+    }
+}
+
+/// A pass that runs, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Planned {
+    /// The pass.
+    pub pass: Pass,
+    /// Why it runs.
+    pub why: String,
+}
+
+/// A pass that does not run, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Skipped {
+    /// The pass name.
+    pub pass: String,
+    /// Why it does not run.
+    pub why: String,
+}
+
+/// The plan of a render.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Plan {
+    /// The effects the scene implies (union over colour channels).
+    pub implied: Effects,
+    /// The effects rendered (after `[effects]` and caller restrictions).
+    pub effects: Effects,
+    /// The passes, in execution order.
+    pub passes: Vec<Planned>,
+    /// The passes left out.
+    pub skipped: Vec<Skipped>,
+}
+
+/// Light kind names for messages.
+fn kind(l: &Light) -> &'static str {
+    match l {
+        Light::Point { .. } => "point",
+        Light::Directional { .. } => "directional",
+        Light::Sphere { .. } => "sphere",
+        Light::Environment { .. } => "environment",
+    }
+}
+
+/// Plans the passes that render `effects` (a restriction of `implied`) for a scene with
+/// these `lights`; `method` and `downsample` describe the diffusion solve.
+pub fn plan(
+    lights: &[Light],
+    implied: &Effects,
+    effects: &Effects,
+    method: &str,
+    downsample: usize,
+) -> Result<Plan, PipelineError> {
+    let ss = effects.single_scattering_lights();
+    let ms = effects.contains(Effect::MultipleScattering);
+    let emission = effects.contains(Effect::Emission);
+    let why_not = |e: Effect, what: &str| -> String {
+        if implied.contains(e) {
+            format!("{what} is excluded by the effect selection")
+        } else {
+            format!("the scene has no {what}")
+        }
+    };
+    let mut passes = Vec::new();
+    let mut skipped = Vec::new();
+    let mut baked = Vec::new();
+    for (i, light) in lights.iter().enumerate() {
+        let for_ss = ss.contains(&i);
+        let name = format!("bake_{}[{i}]", kind(light));
+        if !for_ss && !ms {
+            let why = if !implied.contains(Effect::SingleScattering { light: i }) {
+                "nothing scatters, so the light is never seen".to_string()
+            } else {
+                format!(
+                    "neither single scattering of light {i} nor multiple scattering is rendered"
+                )
+            };
+            skipped.push(Skipped { pass: name, why });
+            continue;
+        }
+        let pass = match light {
+            Light::Directional { .. } => Pass::BakeDirectional { light: i },
+            Light::Point { .. } => Pass::BakePoint { light: i },
+            other => {
+                return Err(PipelineError::UnsupportedLight {
+                    index: i,
+                    kind: kind(other),
+                });
+            }
+        };
+        let why = match (for_ss, ms) {
+            (true, true) => format!(
+                "single scattering of light {i} is rendered and its q_ri sources multiple scattering"
+            ),
+            (true, false) => format!("single scattering of light {i} is rendered"),
+            _ => format!(
+                "its q_ri sources multiple scattering (its single scattering is not rendered)"
+            ),
+        };
+        baked.push(i);
+        passes.push(Planned { pass, why });
+    }
+    if ms {
+        let mut src = Vec::new();
+        if !baked.is_empty() {
+            src.push(format!("q_ri of light(s) {baked:?}"));
+        }
+        if emission {
+            src.push("the emission j".into());
+        }
+        passes.push(Planned {
+            pass: Pass::DiffusionSolve {
+                method: method.to_string(),
+                downsample,
+                with_emission: emission,
+                lights: baked.clone(),
+            },
+            why: format!(
+                "multiple scattering is rendered: φ from {} on a grid downsampled {downsample}x",
+                src.join(" + ")
+            ),
+        });
+    } else {
+        skipped.push(Skipped {
+            pass: "diffusion_solve".into(),
+            why: why_not(Effect::MultipleScattering, "multiple scattering"),
+        });
+    }
+    if ss.is_empty() {
+        skipped.push(Skipped {
+            pass: "raymarch_single".into(),
+            why: if lights.is_empty() {
+                "the scene has no lights".into()
+            } else if implied.single_scattering_lights().is_empty() {
+                "nothing scatters".into()
+            } else {
+                "single scattering is excluded by the effect selection".into()
+            },
+        });
+    } else {
+        let isotropic = !effects.contains(Effect::Anisotropy);
+        passes.push(Planned {
+            pass: Pass::RaymarchSingle {
+                lights: ss.clone(),
+                isotropic,
+            },
+            why: format!(
+                "single scattering of light(s) {ss:?}, {}",
+                if isotropic {
+                    "isotropic phase (fast path)"
+                } else {
+                    "with the scene's anisotropic phase function"
+                }
+            ),
+        });
+    }
+    if ms {
+        passes.push(Planned {
+            pass: Pass::RaymarchMultiple,
+            why: "σs·φ/4π of FLD Eq 8 (isotropic)".into(),
+        });
+    } else {
+        skipped.push(Skipped {
+            pass: "raymarch_multiple".into(),
+            why: why_not(Effect::MultipleScattering, "multiple scattering"),
+        });
+    }
+    if emission {
+        passes.push(Planned {
+            pass: Pass::RaymarchEmission,
+            why: "j/4π of FLD Eq 8 (unscattered emission)".into(),
+        });
+    } else {
+        skipped.push(Skipped {
+            pass: "raymarch_emission".into(),
+            why: why_not(Effect::Emission, "emission"),
+        });
+    }
+    Ok(Plan {
+        implied: implied.clone(),
+        effects: effects.clone(),
+        passes,
+        skipped,
+    })
+}
+
+impl Plan {
+    /// The pass names in order.
+    pub fn pass_names(&self) -> Vec<String> {
+        self.passes.iter().map(|p| p.pass.name()).collect()
+    }
+
+    /// Whether a pass of this name runs.
+    pub fn runs(&self, name: &str) -> bool {
+        self.passes.iter().any(|p| p.pass.name() == name)
+    }
+
+    /// The plan as text, for `--explain`.
+    pub fn explain(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "implied effects:  {}", self.implied.names());
+        let _ = writeln!(s, "rendered effects: {}", self.effects.names());
+        if self.passes.is_empty() {
+            let _ = writeln!(s, "passes: none (the image is black)");
+        } else {
+            let _ = writeln!(s, "passes:");
+            for (k, p) in self.passes.iter().enumerate() {
+                let _ = writeln!(s, "  {}. {:<22} {}", k + 1, p.pass.name(), p.why);
+            }
+        }
+        if !self.skipped.is_empty() {
+            let _ = writeln!(s, "skipped:");
+            for p in &self.skipped {
+                let _ = writeln!(s, "  - {:<22} {}", p.pass, p.why);
+            }
+        }
+        s
+    }
+}

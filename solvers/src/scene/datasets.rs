@@ -1,0 +1,1 @@
+//! Procedural datasets of the rendering pipeline (filled in below).
