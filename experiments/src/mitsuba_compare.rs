@@ -28,7 +28,7 @@ use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
 use reference::compare::{Comparison, ImageEstimate, compare};
 use reference::mitsuba::{MitsubaConfig, MitsubaSettings, render};
-use reference::pathtracer::{Image, MIN_BATCHES, RenderSettings, render_image};
+use reference::pathtracer::{Contributions, Image, MIN_BATCHES, RenderSettings, render_image};
 use serde::Serialize;
 use solvers::scene::SceneFile;
 use std::path::{Path, PathBuf};
@@ -234,7 +234,9 @@ pub fn run(args: &Args) -> Result<Vec<Row>> {
         spp,
         seed,
         batches: args.batches,
-        max_depth: args.max_depth,
+        contributions: args
+            .max_depth
+            .map_or(Contributions::all(), Contributions::up_to),
     };
     let t0 = Instant::now();
     let c0 = process_cpu_seconds();

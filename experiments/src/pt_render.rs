@@ -16,7 +16,7 @@ use crate::common::{CommonArgs, Output};
 use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
 use reference::pathtracer::{
-    Image, Interpolation, RenderSettings, TraceOptions, render_image_with,
+    Contributions, Image, Interpolation, RenderSettings, TraceOptions, render_image_with,
 };
 use serde::Serialize;
 use solvers::noise::Perlin;
@@ -161,7 +161,7 @@ pub fn run(args: &Args) -> Result<Vec<TimingRow>> {
         spp,
         seed: args.seed,
         batches: 16,
-        max_depth: None,
+        contributions: Contributions::all(),
     };
     let mut cases = vec![("blocks8", 8usize)];
     if args.global {

@@ -22,15 +22,18 @@
 //! * volume emission j: ∫ j/4π dt along every flight segment up to its end (a track-length
 //!   estimator, exact per segment for both reconstructions — see `Volume::integrate`).
 //!
-//! `max_depth = Some(k)` keeps light that scattered at most k times (k = 0: emission,
-//! environment and spheres seen directly through the medium only). This is Mitsuba's
-//! `max_depth` minus one. `None` is unbiased (Russian roulette ends paths).
+//! [`Contributions`] select scattering orders and emitters: `Contributions::up_to(k)` keeps
+//! light that scattered at most k times (k = 0: emission, environment and spheres seen
+//! directly through the medium only), which is Mitsuba's `max_depth` minus one;
+//! `Contributions::all()` is unbiased (Russian roulette ends paths). A path stops as soon as
+//! no later vertex can contribute.
 //!
 //! The pixel value is the radiance averaged over the pixel area; its standard error comes from
 //! `batches` batch means of the pixel's `spp` samples. Sample s of pixel p (row-major index)
 //! uses the random stream `(seed, p·spp + s)`.
 
 use super::TraceOptions;
+use super::contributions::Contributions;
 use super::estimators::{batch_sizes, check_batches};
 use super::math::{Vec3, at, cross, normalize, sub};
 use super::phase::sample_dir;
@@ -50,8 +53,8 @@ pub struct RenderSettings {
     pub seed: u64,
     /// Batches for the standard error, ≥ [`MIN_BATCHES`](super::estimators::MIN_BATCHES).
     pub batches: u32,
-    /// Most scattering events per path (`None`: unlimited). Mitsuba's `max_depth` − 1.
-    pub max_depth: Option<u32>,
+    /// Which scattering orders and emitters are kept (default: all).
+    pub contributions: Contributions,
 }
 
 /// A rendered image: radiance per pixel and its standard error.
@@ -133,6 +136,7 @@ pub fn render_image_with(
 ) -> Result<Image, ReferenceError> {
     let camera = scene.camera.ok_or(ReferenceError::NoCamera)?;
     check_batches(settings.batches, settings.spp as u64, "spp")?;
+    settings.contributions.validate()?;
     let world = World::new(scene, options)?;
     let rays = CameraRays::new(&camera);
     let [width, height] = camera.resolution;
@@ -153,7 +157,7 @@ pub fn render_image_with(
                     for _ in 0..n {
                         let mut rng = Rng::new(settings.seed, pixel * spp + s);
                         let (o, d) = rays.ray(x as f64 + rng.uniform(), y as f64 + rng.uniform());
-                        sum += radiance(&world, o, d, settings.max_depth, &mut rng);
+                        sum += radiance(&world, o, d, &settings.contributions, &mut rng);
                         s += 1;
                     }
                     acc.add(sum, n);
@@ -197,35 +201,38 @@ impl Scalar {
 const INV_4PI: f64 = 1.0 / (4.0 * PI);
 const ROULETTE: f64 = 0.1;
 
-/// Radiance arriving at `o` from direction −`d` (one path sample).
+/// Radiance arriving at `o` from direction −`d` (one path sample), restricted to `keep`.
 pub(crate) fn radiance(
     world: &World,
     mut o: Vec3,
     mut d: Vec3,
-    max_depth: Option<u32>,
+    keep: &Contributions,
     rng: &mut Rng,
 ) -> f64 {
     let mut weight = 1.0;
+    // Scattering events so far: the order of whatever this segment collects.
     let mut depth = 0u32;
     let mut l = 0.0;
     loop {
         let event = world.flight(o, d, rng);
-        if world.has_emission {
+        if world.has_emission && keep.emitted(depth) {
             l += weight * INV_4PI * world.volume().emission_integral(o, d, 0.0, event.t_end());
         }
         match event {
             Event::Escape => {
-                l += weight * world.environment;
+                if keep.light(depth) {
+                    l += weight * world.environment;
+                }
                 return l;
             }
             Event::Sphere { index, outside, .. } => {
-                if depth == 0 && outside {
+                if depth == 0 && outside && keep.light(0) {
                     l += weight * world.spheres[index].radiance;
                 }
                 return l;
             }
             Event::Collision(t) => {
-                if max_depth.is_some_and(|m| depth >= m) {
+                if !keep.continues_after(depth) {
                     return l;
                 }
                 let x = at(o, d, t);
@@ -234,7 +241,9 @@ pub(crate) fn radiance(
                     return l;
                 }
                 depth += 1;
-                l += weight * world.direct(x, d, rng);
+                if keep.light(depth) {
+                    l += weight * world.direct(x, d, rng);
+                }
                 if weight < ROULETTE {
                     if rng.uniform() * ROULETTE >= weight {
                         return l;

@@ -11,6 +11,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`camera`] | images of a [`Scene`](solvers::scene::Scene): [`render_image`] |
+//! | [`contributions`] | which scattering orders and emitters an image keeps |
 //! | [`fluence`](mod@fluence) | per-voxel track-length fluence of a scene, collided and uncollided: [`fluence()`] |
 //! | [`infinite`] | point source in an unbounded medium: shell tallies of 4πr²φ |
 //! | [`slab`] | plane-parallel slab: R, T_d, T_dir, A |
@@ -25,6 +26,7 @@
 //! power per area, radiance in power per area per steradian.
 
 pub mod camera;
+pub mod contributions;
 pub mod estimators;
 pub mod fluence;
 pub mod infinite;
@@ -37,6 +39,7 @@ pub mod volume;
 pub(crate) mod world;
 
 pub use camera::{Image, RenderSettings, render_image, render_image_with};
+pub use contributions::Contributions;
 pub use estimators::{Estimate, MIN_BATCHES};
 pub use fluence::{Field, Fluence, PathSettings, fluence, fluence_with};
 pub use infinite::{InfiniteMedium, Shell};

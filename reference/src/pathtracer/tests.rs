@@ -37,7 +37,7 @@ fn settings(spp: u32, seed: u64, max_depth: Option<u32>) -> RenderSettings {
         spp,
         seed,
         batches: 16,
-        max_depth,
+        contributions: max_depth.map_or(Contributions::all(), Contributions::up_to),
     }
 }
 
@@ -279,6 +279,76 @@ fn emission_is_collected_along_the_path() {
             );
         }
     }
+}
+
+/// The order-and-emitter split of [`Contributions`] partitions the radiance: single +
+/// multiple scattering of the light + direct + scattered emission = the full image, pixel
+/// by pixel within Šidák-corrected z over the pixels (independent seeds per part). The
+/// emission-only part of a *scattering* cube is the purely absorbing closed form
+/// j/(4πσt)(1 − e^{−σt}), because no scattered light may enter it.
+#[test]
+fn contributions_partition_the_radiance() {
+    let (sigma, albedo, j) = (2.0, 0.8, 3.0);
+    let res = 3;
+    let s = scene(
+        unit_cube(4, sigma, albedo, j),
+        Phase::HenyeyGreenstein { g: 0.3 },
+        vec![sun()],
+        Some(top_camera(res, 0.9)),
+    );
+    let run = |c: Contributions, seed: u64| {
+        render_image(
+            &s,
+            &RenderSettings {
+                contributions: c,
+                ..settings(3000, seed, None)
+            },
+        )
+        .unwrap()
+    };
+    let full = run(Contributions::all(), 1);
+    let parts = [
+        run(Contributions::single_scattering(), 2),
+        run(Contributions::multiple_scattering(), 3),
+        run(Contributions::emission_only(), 4),
+        run(Contributions::scattered_emission(), 5),
+    ];
+    let zmax = sidak_z(2 * res * res, FAMILY);
+    for i in 0..res * res {
+        let sum: f64 = parts.iter().map(|p| p.mean[i]).sum();
+        let var: f64 =
+            parts.iter().map(|p| p.stderr[i].powi(2)).sum::<f64>() + full.stderr[i].powi(2);
+        let z = (sum - full.mean[i]) / var.sqrt();
+        assert!(
+            z.abs() < zmax,
+            "pixel {i}: parts {sum} vs full {} (z = {z})",
+            full.mean[i]
+        );
+        assert!(
+            parts.iter().all(|p| p.mean[i] > 0.0),
+            "pixel {i}: an empty part"
+        );
+    }
+    let exact = j / (4.0 * std::f64::consts::PI * sigma) * (1.0 - (-sigma).exp());
+    for (m, e) in parts[2].mean.iter().zip(&parts[2].stderr) {
+        assert!(
+            ((m - exact) / e).abs() < zmax,
+            "emission only: {m} ± {e} vs {exact}"
+        );
+    }
+    assert!(matches!(
+        render_image(
+            &s,
+            &RenderSettings {
+                contributions: Contributions {
+                    min_order: 2,
+                    ..Contributions::up_to(1)
+                },
+                ..settings(16, 0, None)
+            }
+        ),
+        Err(crate::ReferenceError::BadParameter { .. })
+    ));
 }
 
 /// The majorant grid (8³ blocks) and one global majorant sample the same process: images of
