@@ -19,6 +19,7 @@
 #![deny(missing_docs)]
 
 pub mod compare;
+pub mod effects;
 pub mod mitsuba;
 pub mod pathtracer;
 pub mod point_source;

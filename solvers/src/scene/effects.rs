@@ -31,7 +31,7 @@
 //! ## Scene-file syntax
 //! ```toml
 //! [effects]
-//! only = ["emission"]                    # keep only these (attenuation is always kept)
+//! only = ["emission"]                    # keep only these light-transport effects
 //! exclude = ["multiple_scattering"]      # then drop these
 //! ```
 //! Names: `attenuation`, `single_scattering` (every light) or `single_scattering[i]`
@@ -173,8 +173,11 @@ impl fmt::Display for EffectPattern {
     }
 }
 
-/// A restriction of the implied effects: keep `only` (if given; attenuation is always
-/// kept), then drop `exclude`. The default restricts nothing.
+/// A restriction of the implied effects: keep the single-scattering, multiple-scattering
+/// and emission effects that match `only` (if given; attenuation and anisotropy are
+/// properties of the medium, which `only` leaves alone), then drop those matching
+/// `exclude` (anisotropy can be excluded, attenuation cannot). Anisotropy is dropped when
+/// nothing that scatters remains. The default restricts nothing.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct EffectSelection {
     /// Keep only effects matching one of these (`None`: keep all).
@@ -265,7 +268,7 @@ impl Effects {
             self.0
                 .iter()
                 .filter(|e| {
-                    **e == Effect::Attenuation
+                    matches!(e, Effect::Attenuation | Effect::Anisotropy)
                         || sel
                             .only
                             .as_ref()
@@ -274,7 +277,23 @@ impl Effects {
                 .filter(|e| !sel.exclude.iter().any(|p| p.matches(e)))
                 .copied()
                 .collect(),
-        ))
+        )
+        .drop_orphan_anisotropy())
+    }
+
+    /// Anisotropy only matters while something scatters: without single or multiple
+    /// scattering in the set it is dropped.
+    fn drop_orphan_anisotropy(mut self) -> Effects {
+        let scatters = self.0.iter().any(|e| {
+            matches!(
+                e,
+                Effect::SingleScattering { .. } | Effect::MultipleScattering
+            )
+        });
+        if !scatters {
+            self.0.remove(&Effect::Anisotropy);
+        }
+        self
     }
 
     /// The phase function a renderer of this effect set uses for `scene`: the scene's, or

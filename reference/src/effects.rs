@@ -1,0 +1,212 @@
+//! The path tracer on exactly the effects the grid pipeline renders: maps a
+//! [`solvers::scene::Effects`] set to the path-tracer renders ([`Contributions`] and, where
+//! needed, a scene with fewer lights or an isotropic phase function) whose sum is each of the
+//! pipeline's image components (`solvers::pipeline::ChannelImages`):
+//!
+//! | component | path-tracer renders |
+//! |---|---|
+//! | `single` | [`Contributions::single_scattering`] on the scene with only the lights whose single scattering is in the set |
+//! | `multiple` | [`Contributions::multiple_scattering`] (if the scene has lights) + [`Contributions::scattered_emission`] (if emission is in the set) — only if multiple scattering is in the set |
+//! | `emission` | [`Contributions::emission_only`] — if emission is in the set |
+//!
+//! Every render uses the phase function the effect set implies (isotropic unless
+//! anisotropy is in the set). Each render gets its own seed (`seed + k` for the k-th render
+//! of [`pt_passes`]), so the components are independent estimates and their standard errors
+//! add in quadrature.
+
+use crate::ReferenceError;
+use crate::pathtracer::{Contributions, Image, RenderSettings, render_image};
+use solvers::scene::{Effect, Effects, Scene};
+
+/// One of the pipeline's image components.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Component {
+    /// Order 1 from lights.
+    Single,
+    /// Orders ≥ 2 from lights and ≥ 1 from emission.
+    Multiple,
+    /// Order-0 emission.
+    Emission,
+}
+
+/// One path-tracer render that contributes to a component.
+#[derive(Debug, Clone)]
+pub struct PtPass {
+    /// The component it belongs to.
+    pub component: Component,
+    /// The scene to render (lights and phase function adjusted to the effect set).
+    pub scene: Scene,
+    /// What the render keeps.
+    pub contributions: Contributions,
+}
+
+/// The path-tracer renders that reproduce the pipeline's components of `scene` under
+/// `effects` (see the module table). Empty when nothing is rendered.
+pub fn pt_passes(scene: &Scene, effects: &Effects) -> Vec<PtPass> {
+    let mut base = scene.clone();
+    base.phase = effects.apply_phase(scene.phase);
+    let mut out = Vec::new();
+    let ss = effects.single_scattering_lights();
+    if !ss.is_empty() {
+        let mut s = base.clone();
+        s.lights = ss
+            .iter()
+            .filter_map(|&i| scene.lights.get(i).copied())
+            .collect();
+        out.push(PtPass {
+            component: Component::Single,
+            scene: s,
+            contributions: Contributions::single_scattering(),
+        });
+    }
+    let emission = effects.contains(Effect::Emission);
+    if effects.contains(Effect::MultipleScattering) {
+        if !scene.lights.is_empty() {
+            out.push(PtPass {
+                component: Component::Multiple,
+                scene: base.clone(),
+                contributions: Contributions::multiple_scattering(),
+            });
+        }
+        if emission {
+            out.push(PtPass {
+                component: Component::Multiple,
+                scene: base.clone(),
+                contributions: Contributions::scattered_emission(),
+            });
+        }
+    }
+    if emission {
+        out.push(PtPass {
+            component: Component::Emission,
+            scene: base,
+            contributions: Contributions::emission_only(),
+        });
+    }
+    out
+}
+
+/// Path-traced images of the pipeline's components, each with standard errors (a component
+/// that is not rendered is zero with zero error).
+#[derive(Debug, Clone)]
+pub struct PtComponents {
+    /// single + multiple + emission.
+    pub total: Image,
+    /// Order 1 from lights.
+    pub single: Image,
+    /// Orders ≥ 2 from lights, ≥ 1 from emission.
+    pub multiple: Image,
+    /// Order-0 emission.
+    pub emission: Image,
+    /// The renders that ran, with their seconds.
+    pub renders: Vec<(Component, Contributions, f64)>,
+}
+
+fn zero(w: usize, h: usize) -> Image {
+    Image {
+        width: w,
+        height: h,
+        mean: vec![0.0; w * h],
+        stderr: vec![0.0; w * h],
+    }
+}
+
+fn add(acc: &mut Image, im: &Image) {
+    for p in 0..acc.mean.len() {
+        acc.mean[p] += im.mean[p];
+        acc.stderr[p] = acc.stderr[p].hypot(im.stderr[p]);
+    }
+}
+
+/// Renders the components of `scene` under `effects` with the path tracer (`settings`'
+/// contributions are replaced per render, and its seed offset by the render's index).
+pub fn render_components(
+    scene: &Scene,
+    effects: &Effects,
+    settings: &RenderSettings,
+) -> Result<PtComponents, ReferenceError> {
+    let camera = scene.camera.ok_or(ReferenceError::NoCamera)?;
+    let [w, h] = camera.resolution;
+    let mut out = PtComponents {
+        total: zero(w, h),
+        single: zero(w, h),
+        multiple: zero(w, h),
+        emission: zero(w, h),
+        renders: Vec::new(),
+    };
+    for (k, pass) in pt_passes(scene, effects).into_iter().enumerate() {
+        let s = RenderSettings {
+            contributions: pass.contributions,
+            seed: settings.seed.wrapping_add(k as u64),
+            ..*settings
+        };
+        let t0 = std::time::Instant::now();
+        let im = render_image(&pass.scene, &s)?;
+        out.renders.push((
+            pass.component,
+            pass.contributions,
+            t0.elapsed().as_secs_f64(),
+        ));
+        let target = match pass.component {
+            Component::Single => &mut out.single,
+            Component::Multiple => &mut out.multiple,
+            Component::Emission => &mut out.emission,
+        };
+        add(target, &im);
+        add(&mut out.total, &im);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use solvers::scene::{EffectSelection, Light, Phase, Sampler};
+    use solvers::{Grid, Medium};
+
+    #[test]
+    fn passes_follow_the_effect_set() {
+        let grid = Grid::cube(4, 1.0).unwrap();
+        let mut medium = Medium::homogeneous(grid, 2.0, 0.5).unwrap();
+        medium.emission = vec![1.0; grid.len()];
+        let scene = Scene {
+            medium,
+            phase: Phase::HenyeyGreenstein { g: 0.5 },
+            lights: vec![
+                Light::directional([0.0, 0.0, -1.0], 1.0).unwrap(),
+                Light::Point {
+                    position: [0.5, 0.5, 2.0],
+                    power: 1.0,
+                },
+            ],
+            camera: None,
+            sampler: Sampler { spp: 1, seed: 0 },
+        };
+        let all = scene.implied_effects();
+        let p = pt_passes(&scene, &all);
+        let kinds: Vec<_> = p.iter().map(|p| (p.component, p.contributions)).collect();
+        assert_eq!(
+            kinds,
+            vec![
+                (Component::Single, Contributions::single_scattering()),
+                (Component::Multiple, Contributions::multiple_scattering()),
+                (Component::Multiple, Contributions::scattered_emission()),
+                (Component::Emission, Contributions::emission_only()),
+            ]
+        );
+        assert_eq!(p[0].scene.phase, Phase::HenyeyGreenstein { g: 0.5 });
+        let sel =
+            EffectSelection::exclude(&["single_scattering[1]", "emission", "anisotropy"]).unwrap();
+        let e = all.restrict(&sel, 2).unwrap();
+        let p = pt_passes(&scene, &e);
+        assert_eq!(p.len(), 2);
+        assert_eq!(p[0].scene.lights, vec![scene.lights[0]]);
+        assert_eq!(p[0].scene.phase, Phase::Isotropic);
+        assert_eq!(p[1].contributions, Contributions::multiple_scattering());
+        assert_eq!(p[1].scene.lights.len(), 2);
+        let only = EffectSelection::only(&["emission"]).unwrap();
+        let p = pt_passes(&scene, &all.restrict(&only, 2).unwrap());
+        assert_eq!(p.len(), 1);
+        assert_eq!(p[0].contributions, Contributions::emission_only());
+    }
+}
