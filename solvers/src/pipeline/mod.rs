@@ -40,6 +40,7 @@ use crate::fld::{Boundary, FldConfig, FluxLimiter, Status};
 use crate::scene::{EffectSelection, Effects, EffectsError, Scene, SceneFile};
 use crate::{Backend, SolverError};
 use bake::BakedLight;
+pub use bake::Shadows;
 use raymarch::Term;
 use serde::Serialize;
 use std::fmt;
@@ -138,6 +139,9 @@ pub struct PipelineConfig {
     pub pixel_samples: usize,
     /// A further restriction of the effects (applied after the scene file's).
     pub effects: EffectSelection,
+    /// Optical depth to the lights in the single-scattering raymarch: exact shadow rays
+    /// (default) or the paper's deep shadow map (see [`bake`]).
+    pub shadows: Shadows,
 }
 
 impl Default for PipelineConfig {
@@ -150,6 +154,7 @@ impl Default for PipelineConfig {
             step: 0.5,
             pixel_samples: 1,
             effects: EffectSelection::all(),
+            shadows: Shadows::Exact,
         }
     }
 }
@@ -408,7 +413,11 @@ pub fn render_channels(
                     img.single = raymarch::render_term(
                         medium,
                         &camera,
-                        Term::Single { lights: &ls, phase },
+                        Term::Single {
+                            lights: &ls,
+                            phase,
+                            shadows: config.shadows,
+                        },
                         config.step,
                         config.pixel_samples,
                     );

@@ -3,7 +3,8 @@
 //! Along each camera ray, L = ∫ T(s) Q(s) ds with 4πQ = q_ri + σs φ + j (FLD Eq 8), split
 //! into three independently integrated components (see `crate::scene::effects` for their
 //! meaning in scattering orders):
-//! * single scattering: σs(x) Σ_l p(cos θ_l) E_l(x) exp(−τ_l(x)), with the scene's phase
+//! * single scattering: σs(x) Σ_l p(cos θ_l) E_l(x) exp(−τ_l(x)) (τ_l from the deep
+//!   shadow map, see [`super::bake`]), with the scene's phase
 //!   function p (HG or isotropic; the isotropic fast path skips the cosine) and θ_l between
 //!   light l's propagation direction and the direction towards the camera. With p = 1/4π
 //!   this is exactly the paper's q_ri/4π;
@@ -28,7 +29,7 @@
 //! the sub-squares), averaged: the box filter of the path tracer, in the limit. s = 1 is the
 //! pixel centre.
 
-use super::bake::BakedLight;
+use super::bake::{BakedLight, Shadows};
 use super::geometry::{CameraRays, ray_box, traverse, trilinear};
 use crate::scene::{Camera, Phase};
 use crate::vec3::Vec3;
@@ -50,6 +51,8 @@ pub enum Term<'a> {
         lights: &'a [BakedLight],
         /// The phase function (isotropic takes the fast path).
         phase: Phase,
+        /// Exact shadow rays or the deep shadow map.
+        shadows: Shadows,
     },
     /// σs φ/4π with φ on `grid`.
     Multiple {
@@ -136,11 +139,15 @@ pub fn march(
                 Term::Multiple { grid, phi } => {
                     sigma_s[i] * trilinear(grid, phi, p, false) * INV_4PI
                 }
-                Term::Single { lights, phase } => {
+                Term::Single {
+                    lights,
+                    phase,
+                    shadows,
+                } => {
                     let mut sum = 0.0;
                     for l in lights {
                         let (e, dir) = l.unattenuated(p);
-                        let t = (-trilinear(g, &l.tau, p, true).max(0.0)).exp();
+                        let t = (-l.tau_at(medium, p, shadows)).exp();
                         let pf = match phase {
                             Phase::Isotropic => INV_4PI,
                             Phase::HenyeyGreenstein { g } => {
