@@ -16,4 +16,5 @@ pub mod point_source_analytic;
 pub mod pt_point_source;
 pub mod pt_render;
 pub mod pt_slab;
+pub mod render;
 pub mod transport_references;

@@ -1,0 +1,366 @@
+//! `render`: one scene file, one method → images, the plan and the timings.
+//!
+//! `--scene FILE --method pt|cda|fld[:limiter] --backend cpu|gpu --out DIR [--explain]`
+//! renders the scene's camera image with the grid pipeline (`solvers::pipeline`: light
+//! baking and raymarching on the CPU, the diffusion solve on `--backend`) or with the path
+//! tracer (`--method pt`, on exactly the effects the grid pipeline would render, via
+//! `reference::effects`). The scene's `[effects]` table restricts what is rendered.
+//!
+//! Writes to `--out` (default `results/render/`):
+//! * `image.pfm` (radiance in physical units, 1 or 3 channels) and `image.png` (gamma 2.2,
+//!   white at the 99th percentile of the total image's largest channel);
+//! * per component that ran, `single.*`, `multiple.*`, `emission.*` (same exposure);
+//!   path tracer: also `image_stderr.pfm` (per-pixel standard errors);
+//! * `plan.json`: method, effects, the plan (passes with why, skipped passes with why), the
+//!   passes that ran with their seconds, and the diffusion solves (grid, iterations,
+//!   residual, status);
+//! * `passes.csv`: `pass,channel,seconds`;
+//! * `meta.json`: command, parameters, git revision, machine, timings.
+//!
+//! `--explain` prints the plan (and why each pass runs or not) before rendering.
+//! `--quick` caps the image at 24×24 pixels and the path tracer at 16 samples per pixel.
+
+use crate::common::{BackendArgs, CommonArgs, Output};
+use anyhow::{Context, Result, bail};
+use plotters::prelude::*;
+use reference::effects::{Component, render_components};
+use reference::pathtracer::{Contributions, RenderSettings};
+use serde::Serialize;
+use solvers::Precision;
+use solvers::pipeline::{self, DiffusionMethod, PipelineConfig, Shadows};
+use solvers::scene::{Scene, SceneFile};
+use std::path::{Path, PathBuf};
+
+/// Flags of `render`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(about = "Render a scene file with the path tracer or the CDA/FLD pipeline")]
+pub struct Args {
+    /// Shared flags.
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Backend of the diffusion solve.
+    #[command(flatten)]
+    pub backend: BackendArgs,
+    /// The scene file.
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// `pt`, `cda`, `fld` (Levermore–Pomraning) or `fld:<limiter>`.
+    #[arg(long, default_value = "fld")]
+    pub method: String,
+    /// Print the plan and why each pass runs or not.
+    #[arg(long)]
+    pub explain: bool,
+    /// Path-tracer samples per pixel (default: the scene's `[sampler] spp`).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Downsampling factor of the diffusion grid.
+    #[arg(long, default_value_t = 4)]
+    pub downsample: usize,
+    /// CPU precision of the diffusion solve (`f32` or `f64`; the GPU is f32).
+    #[arg(long, default_value = "f64")]
+    pub precision: String,
+    /// Raymarch sub-step as a fraction of a voxel.
+    #[arg(long, default_value_t = 0.5)]
+    pub step: f64,
+    /// Stratified rays per pixel and axis in the raymarch.
+    #[arg(long, default_value_t = 1)]
+    pub pixel_samples: usize,
+    /// `exact` shadow rays or the paper's `dsm` (deep shadow map) in single scattering.
+    #[arg(long, default_value = "exact")]
+    pub shadows: String,
+    /// SOR factor of the diffusion solve.
+    #[arg(long, default_value_t = 1.0)]
+    pub omega: f64,
+}
+
+/// One row of `passes.csv`.
+#[derive(Debug, Clone, Serialize)]
+pub struct PassRow {
+    /// Pass name (pipeline) or `pt_<component>_<orders>` (path tracer).
+    pub pass: String,
+    /// Colour channel.
+    pub channel: usize,
+    /// Wall seconds.
+    pub seconds: f64,
+}
+
+/// Images of one render, per channel: total and components (with stderr for the path tracer).
+#[derive(Debug, Clone)]
+pub struct RenderOutput {
+    /// Width, height.
+    pub size: (usize, usize),
+    /// `total`, `single`, `multiple`, `emission` per channel.
+    pub images: Vec<(String, Vec<Vec<f64>>)>,
+    /// The rows of `passes.csv`.
+    pub passes: Vec<PassRow>,
+}
+
+fn contributions_json(c: &Contributions) -> serde_json::Value {
+    serde_json::json!({
+        "min_order": c.min_order, "max_order": c.max_order,
+        "lights": c.lights, "emission": c.emission,
+    })
+}
+
+/// Runs the experiment.
+pub fn run(args: &Args) -> Result<RenderOutput> {
+    let mut file = SceneFile::load(&args.scene)
+        .with_context(|| format!("loading --scene {}", args.scene.display()))?;
+    let quick = args.common.quick;
+    if quick {
+        cap_resolution(&mut file, 24);
+    }
+    let mut channels = file.channels();
+    let Some(camera) = channels[0].camera else {
+        bail!("{}: the scene has no [camera]", args.scene.display());
+    };
+    let shadows = match args.shadows.as_str() {
+        "exact" => Shadows::Exact,
+        "dsm" => Shadows::DeepShadowMap,
+        other => bail!("--shadows must be exact or dsm, got `{other}`"),
+    };
+    let pt = args.method.trim() == "pt";
+    let method: DiffusionMethod = if pt {
+        DiffusionMethod::Fld(solvers::fld::FluxLimiter::LevermorePomraning)
+    } else {
+        args.method
+            .parse()
+            .with_context(|| format!("--method `{}`", args.method))?
+    };
+    let precision: Precision = args
+        .precision
+        .parse()
+        .with_context(|| format!("--precision `{}`", args.precision))?;
+    let config = PipelineConfig {
+        method,
+        downsample: args.downsample,
+        step: args.step,
+        pixel_samples: args.pixel_samples,
+        shadows,
+        fld: solvers::fld::FldConfig::default().with_omega(args.omega),
+        ..PipelineConfig::default()
+    };
+    let spp = args
+        .spp
+        .unwrap_or(channels[0].sampler.spp)
+        .min(if quick { 16 } else { u32::MAX });
+    let mut out = Output::new(
+        "render",
+        &args.common,
+        serde_json::json!({
+            "scene": args.scene.display().to_string(), "method": args.method,
+            "backend": args.backend.backend, "downsample": args.downsample, "spp": spp,
+            "precision": args.precision, "step": args.step, "pixel_samples": args.pixel_samples,
+            "shadows": args.shadows, "omega": args.omega, "quick": quick,
+        }),
+    )?;
+    let [w, h] = camera.resolution;
+    let plan = pipeline::plan_channels(&channels, &file.effects, &config);
+    let (result, plan_json) = if pt {
+        let (_, effects) = pipeline::effects_of(&channels, &file.effects, &config)?;
+        if args.explain {
+            println!(
+                "method: path tracer ({spp} spp), rendered effects: {}",
+                effects.names()
+            );
+            for p in reference::effects::pt_passes(&channels[0], &effects) {
+                println!("  {:?}: {:?}", p.component, p.contributions);
+            }
+        }
+        let mut images: Vec<(String, Vec<Vec<f64>>)> =
+            ["total", "single", "multiple", "emission", "stderr"]
+                .iter()
+                .map(|n| (n.to_string(), Vec::new()))
+                .collect();
+        let mut passes = Vec::new();
+        let mut renders = Vec::new();
+        for (c, scene) in channels.iter_mut().enumerate() {
+            scene.sampler.spp = spp;
+            let settings = RenderSettings {
+                spp,
+                seed: scene.sampler.seed,
+                batches: 16.min(spp).max(reference::pathtracer::MIN_BATCHES),
+                contributions: Contributions::all(),
+            };
+            let comp = render_components(scene, &effects, &settings)
+                .with_context(|| format!("path tracing channel {c}"))?;
+            for (component, contributions, seconds) in &comp.renders {
+                let name = format!(
+                    "pt_{}",
+                    match component {
+                        Component::Single => "single",
+                        Component::Multiple => "multiple",
+                        Component::Emission => "emission",
+                    }
+                );
+                renders.push(serde_json::json!({
+                    "pass": name, "channel": c, "seconds": seconds,
+                    "contributions": contributions_json(contributions),
+                }));
+                passes.push(PassRow {
+                    pass: name,
+                    channel: c,
+                    seconds: *seconds,
+                });
+            }
+            images[0].1.push(comp.total.mean);
+            images[1].1.push(comp.single.mean);
+            images[2].1.push(comp.multiple.mean);
+            images[3].1.push(comp.emission.mean);
+            images[4].1.push(comp.total.stderr);
+        }
+        let json = serde_json::json!({
+            "method": "pt", "spp": spp, "effects": effects, "passes_run": renders,
+        });
+        (
+            RenderOutput {
+                size: (w, h),
+                images,
+                passes,
+            },
+            json,
+        )
+    } else {
+        let plan = plan?;
+        if args.explain {
+            println!("method: {method}, downsample {}", args.downsample);
+            print!("{}", plan.explain());
+        }
+        let backends = args.backend.open()?;
+        let list = backends.list(precision);
+        let Some(backend) = list.first() else {
+            bail!("--backend selects no backend");
+        };
+        if list.len() > 1 {
+            bail!("--backend both is not supported by render; pick cpu or gpu");
+        }
+        out.record("backends", backends.meta());
+        let r = pipeline::render_channels(&channels, &file.effects, &config, backend)
+            .context("rendering with the pipeline")?;
+        let pick = |f: &dyn Fn(&pipeline::ChannelImages) -> Vec<f64>| -> Vec<Vec<f64>> {
+            r.channels.iter().map(f).collect()
+        };
+        let mut images = vec![("total".to_string(), pick(&|c| c.total.clone()))];
+        for (name, pass) in [
+            ("single", "raymarch_single"),
+            ("multiple", "raymarch_multiple"),
+            ("emission", "raymarch_emission"),
+        ] {
+            let v = match name {
+                "single" => pick(&|c| c.single.clone()),
+                "multiple" => pick(&|c| c.multiple.clone()),
+                _ => pick(&|c| c.emission.clone()),
+            };
+            if r.plan.runs(pass) {
+                images.push((name.to_string(), v));
+            }
+        }
+        let passes = r
+            .passes_run
+            .iter()
+            .map(|p| PassRow {
+                pass: p.name.clone(),
+                channel: p.channel,
+                seconds: p.seconds,
+            })
+            .collect();
+        let json = serde_json::json!({
+            "method": method.to_string(), "backend": backend.to_string(),
+            "downsample": args.downsample, "plan": r.plan,
+            "passes_run": r.passes_run, "diffusion": r.diffusion,
+        });
+        (
+            RenderOutput {
+                size: (w, h),
+                images,
+                passes,
+            },
+            json,
+        )
+    };
+    for p in &result.passes {
+        out.timing(format!("{} (channel {})", p.pass, p.channel), p.seconds);
+    }
+    std::fs::write(
+        out.path("plan.json"),
+        serde_json::to_string_pretty(&plan_json)?,
+    )
+    .context("writing plan.json")?;
+    out.csv("passes.csv", &result.passes)?;
+    let white = white_point(&result.images[0].1);
+    for (name, chans) in &result.images {
+        if chans.iter().all(|c| c.is_empty()) {
+            continue;
+        }
+        let is_total = name == "total";
+        let stem = match name.as_str() {
+            "total" => "image".to_string(),
+            "stderr" => "image_stderr".to_string(),
+            other => other.to_string(),
+        };
+        // The path tracer's components are always written (they are zero when not rendered).
+        if pt && !is_total && name != "stderr" && chans.iter().all(|c| c.iter().all(|&v| v == 0.0))
+        {
+            continue;
+        }
+        let refs: Vec<&[f64]> = chans.iter().map(|c| c.as_slice()).collect();
+        solvers::pipeline::image::write_pfm(&out.path(&format!("{stem}.pfm")), w, h, &refs)
+            .with_context(|| format!("writing {stem}.pfm"))?;
+        if name != "stderr" {
+            write_png(&out.path(&format!("{stem}.png")), w, h, &refs, white)?;
+        }
+    }
+    out.finish()?;
+    Ok(result)
+}
+
+/// Caps the camera resolution at `max` pixels on the longer side (keeps the aspect).
+fn cap_resolution(file: &mut SceneFile, max: usize) {
+    let cap = |s: &mut Scene| {
+        if let Some(c) = &mut s.camera {
+            let [w, h] = c.resolution;
+            let m = w.max(h);
+            if m > max {
+                c.resolution = [(w * max / m).max(1), (h * max / m).max(1)];
+            }
+        }
+    };
+    cap(&mut file.scene);
+}
+
+/// The 99th percentile of the largest channel per pixel (exposure of every PNG of a render).
+pub fn white_point(total: &[Vec<f64>]) -> f64 {
+    let n = total.first().map_or(0, Vec::len);
+    let mut m: Vec<f64> = (0..n)
+        .map(|p| total.iter().map(|c| c[p]).fold(0.0, f64::max))
+        .collect();
+    m.sort_by(f64::total_cmp);
+    m.get((n * 99 / 100).min(n.saturating_sub(1)))
+        .copied()
+        .unwrap_or(1.0)
+        .max(1e-30)
+}
+
+/// Tone-mapped PNG: value/white clamped to [0, 1], gamma 2.2; grey for one channel.
+pub fn write_png(path: &Path, w: usize, h: usize, channels: &[&[f64]], white: f64) -> Result<()> {
+    let root = BitMapBackend::new(path, (w as u32, h as u32)).into_drawing_area();
+    let tone = |v: f64| ((v / white).clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
+    for y in 0..h {
+        for x in 0..w {
+            let p = y * w + x;
+            let c = match channels {
+                [g] => {
+                    let v = tone(g[p]);
+                    RGBColor(v, v, v)
+                }
+                [r, g, b] => RGBColor(tone(r[p]), tone(g[p]), tone(b[p])),
+                _ => bail!("PNG needs 1 or 3 channels"),
+            };
+            root.draw_pixel((x as i32, y as i32), &c)
+                .map_err(|e| anyhow::anyhow!("drawing {}: {e}", path.display()))?;
+        }
+    }
+    root.present()
+        .map_err(|e| anyhow::anyhow!("writing {}: {e}", path.display()))?;
+    Ok(())
+}

@@ -1,0 +1,113 @@
+//! `render` on CI-sized runs: its files, `passes.csv` columns, `plan.json`, and flag errors.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use clap::Parser;
+use experiments::render;
+use std::path::PathBuf;
+
+fn tmp(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("scatterbench-render-{name}-{}", std::process::id()))
+}
+
+fn scene(name: &str) -> String {
+    experiments::common::workspace_root()
+        .join("scenes")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+#[test]
+fn render_quick_writes_images_plan_and_meta_for_grid_methods_and_the_path_tracer() {
+    for method in ["fld", "cda", "fld:kershaw", "pt"] {
+        let dir = tmp(&method.replace(':', "_"));
+        let args = render::Args::parse_from([
+            "render",
+            "--quick",
+            "--no-progress",
+            "--scene",
+            &scene("cloud_directional.toml"),
+            "--method",
+            method,
+            "--backend",
+            "cpu",
+            "--explain",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        let out = render::run(&args).unwrap();
+        assert_eq!(out.size, (24, 24));
+        for f in [
+            "image.pfm",
+            "image.png",
+            "single.pfm",
+            "multiple.pfm",
+            "plan.json",
+            "meta.json",
+        ] {
+            assert!(dir.join(f).exists(), "{method}: {f} missing");
+        }
+        assert!(
+            !dir.join("emission.pfm").exists(),
+            "{method}: no emission in this scene"
+        );
+        assert_eq!(
+            experiments::common::csv_header(&dir.join("passes.csv")).unwrap(),
+            ["pass", "channel", "seconds"]
+        );
+        let (w, h, ch) = solvers::pipeline::image::read_pfm(&dir.join("image.pfm")).unwrap();
+        assert_eq!((w, h, ch.len()), (24, 24, 1));
+        assert!(ch[0].iter().any(|&v| v > 0.0));
+        let plan: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("plan.json")).unwrap()).unwrap();
+        if method == "pt" {
+            assert_eq!(plan["passes_run"].as_array().unwrap().len(), 2);
+            assert!(dir.join("image_stderr.pfm").exists());
+        } else {
+            let names: Vec<&str> = plan["passes_run"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|p| p["name"].as_str().unwrap())
+                .collect();
+            assert_eq!(
+                names,
+                [
+                    "bake_directional[0]",
+                    "diffusion_solve",
+                    "raymarch_single",
+                    "raymarch_multiple"
+                ]
+            );
+            assert_eq!(plan["diffusion"][0]["status"], "converged");
+        }
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
+
+#[test]
+fn render_rejects_bad_flags() {
+    let dir = tmp("bad");
+    for (flag, value) in [
+        ("--method", "fld:bogus"),
+        ("--shadows", "soft"),
+        ("--backend", "tpu"),
+    ] {
+        let args = render::Args::parse_from([
+            "render",
+            "--quick",
+            "--scene",
+            &scene("cloud_directional.toml"),
+            flag,
+            value,
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        assert!(render::run(&args).is_err(), "{flag} {value}");
+    }
+    let args = render::Args::parse_from(["render", "--scene", "/nonexistent.toml"]);
+    let e = render::run(&args).unwrap_err();
+    assert!(format!("{e:#}").contains("nonexistent"), "{e:#}");
+    std::fs::remove_dir_all(&dir).ok();
+}
