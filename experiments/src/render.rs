@@ -69,8 +69,14 @@ pub struct Args {
     #[arg(long, default_value = "exact")]
     pub shadows: String,
     /// SOR factor of the diffusion solve.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.8)]
     pub omega: f64,
+    /// Stop the diffusion solve at this normalised residual R̄/j̄ (the paper's 10⁻⁴).
+    #[arg(long, default_value_t = 1e-4)]
+    pub tolerance: f64,
+    /// Iteration cap of the diffusion solve (a solve that hits it is reported in plan.json).
+    #[arg(long, default_value_t = 20_000)]
+    pub max_iterations: usize,
 }
 
 /// One row of `passes.csv`.
@@ -137,7 +143,11 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         step: args.step,
         pixel_samples: args.pixel_samples,
         shadows,
-        fld: solvers::fld::FldConfig::default().with_omega(args.omega),
+        fld: PipelineConfig::default()
+            .fld
+            .with_omega(args.omega)
+            .with_tolerance(args.tolerance)
+            .with_max_iterations(args.max_iterations),
         ..PipelineConfig::default()
     };
     let spp = args

@@ -339,3 +339,86 @@ fn unsupported_lights_and_bad_settings_are_typed_errors() {
         "fld:larsen2"
     );
 }
+
+/// The planner's output for each dataset's scene file (acceptance 1).
+#[test]
+fn planner_output_for_each_dataset() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    let cases: [(&str, usize, &[&str], &str); 4] = [
+        (
+            "nebula.toml",
+            3,
+            &[
+                "bake_directional[0]",
+                "diffusion_solve",
+                "raymarch_single",
+                "raymarch_multiple",
+            ],
+            "attenuation, single_scattering[0], multiple_scattering",
+        ),
+        (
+            "emissive_cloud.toml",
+            1,
+            &["diffusion_solve", "raymarch_multiple", "raymarch_emission"],
+            "attenuation, multiple_scattering, emission",
+        ),
+        (
+            "shell_core.toml",
+            1,
+            &[
+                "bake_directional[0]",
+                "diffusion_solve",
+                "raymarch_single",
+                "raymarch_multiple",
+            ],
+            "attenuation, single_scattering[0], multiple_scattering, anisotropy",
+        ),
+        (
+            "plume.toml",
+            3,
+            &[
+                "bake_directional[0]",
+                "bake_point[1]",
+                "diffusion_solve",
+                "raymarch_single",
+                "raymarch_multiple",
+                "raymarch_emission",
+            ],
+            "attenuation, single_scattering[0], single_scattering[1], multiple_scattering, emission",
+        ),
+    ];
+    for (file, channels, passes, effects) in cases {
+        let f = SceneFile::load(&dir.join(file)).unwrap();
+        let ch = f.channels();
+        assert_eq!(ch.len(), channels, "{file}");
+        let plan = pipeline::plan_channels(&ch, &f.effects, &PipelineConfig::default()).unwrap();
+        assert_eq!(plan.pass_names(), passes, "{file}:\n{}", plan.explain());
+        assert_eq!(plan.effects.names(), effects, "{file}");
+        // Restrictions change the plan exactly as the effect set says.
+        let only_emission = PipelineConfig {
+            effects: EffectSelection::only(&["emission"]).unwrap(),
+            ..PipelineConfig::default()
+        };
+        let p = pipeline::plan_channels(&ch, &f.effects, &only_emission).unwrap();
+        let expect: &[&str] = if effects.contains("emission") {
+            &["raymarch_emission"]
+        } else {
+            &[]
+        };
+        assert_eq!(p.pass_names(), expect, "{file}: emission only");
+        let no_ms = PipelineConfig {
+            effects: EffectSelection::exclude(&["multiple_scattering"]).unwrap(),
+            ..PipelineConfig::default()
+        };
+        let p = pipeline::plan_channels(&ch, &f.effects, &no_ms).unwrap();
+        assert!(!p.runs("diffusion_solve"), "{file}");
+        assert!(
+            p.explain().contains("multiple scattering is excluded"),
+            "{file}"
+        );
+    }
+    // The plume's channels glow red more than blue (blackbody at < 1800 K).
+    let plume = SceneFile::load(&dir.join("plume.toml")).unwrap().channels();
+    let glow = |s: &Scene| s.medium.emission.iter().sum::<f64>();
+    assert!(glow(&plume[0]) > glow(&plume[1]) && glow(&plume[1]) > glow(&plume[2]));
+}

@@ -100,6 +100,10 @@ pub const GENERATORS: &[GeneratorEntry] = &[
     GeneratorEntry::of::<Homogeneous>(),
     GeneratorEntry::of::<RandomHeterogeneous>(),
     GeneratorEntry::of::<NoiseCloud>(),
+    GeneratorEntry::of::<super::datasets::Nebula>(),
+    GeneratorEntry::of::<super::datasets::EmissiveCloud>(),
+    GeneratorEntry::of::<super::datasets::ShellCore>(),
+    GeneratorEntry::of::<super::datasets::Plume>(),
 ];
 
 /// The registered generator called `name`.
