@@ -303,8 +303,8 @@ impl Generator for ShellCore {
 /// w(h) = 0.07 + 0.18·h its width:
 /// * density σt = `sigma_max`·exp(−(ρ/w)²)·clamp(0.55 + 0.7·fbm(`frequency`·(x, y, z − h)), 0, 1)
 ///   for 0 ≤ h ≤ 1 (faded over the last 10 % at both ends), 0 elsewhere;
-/// * temperature T = `t_ambient` + (`t_max` − `t_ambient`)·exp(−(ρ/(0.6 w))²)·(1 − h)²:
-///   hottest at the base of the core;
+/// * temperature T = `t_ambient` + (`t_max` − `t_ambient`)·exp(−(ρ/(0.6 w))²)·(1 − 0.7h):
+///   hottest in the core near the base, cooling upwards and outwards;
 /// * emission j_c = `emission_scale`·(σt/`sigma_max`)·B(λ_c, T)/B(λ_G, `t_max`) per channel,
 ///   with Planck's law B(λ, T) = 2hc²/λ⁵ / (e^{hc/(λ k T)} − 1) at λ_R = 610 nm,
 ///   λ_G = 550 nm, λ_B = 465 nm. Emission follows density (soot) rather than Kirchhoff's
@@ -336,7 +336,7 @@ pub struct Plume {
     /// Ambient temperature in kelvin (default 500).
     #[serde(default = "t500")]
     pub t_ambient: f64,
-    /// Emission of the G channel at full density and `t_max` (default 20).
+    /// Emission of the G channel at full density and `t_max` (default 200).
     #[serde(default = "e20")]
     pub emission_scale: f64,
 }
@@ -357,7 +357,7 @@ fn t500() -> f64 {
     500.0
 }
 fn e20() -> f64 {
-    20.0
+    200.0
 }
 
 /// Wavelengths of the R, G, B channels in metres.
@@ -408,7 +408,7 @@ impl Plume {
                 let t = self.t_ambient
                     + (self.t_max - self.t_ambient)
                         * (-(rho / (0.6 * w)).powi(2)).exp()
-                        * (1.0 - h).powi(2);
+                        * (1.0 - 0.7 * h);
                 (s, t)
             } else {
                 (0.0, self.t_ambient)
