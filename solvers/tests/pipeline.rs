@@ -422,3 +422,26 @@ fn planner_output_for_each_dataset() {
     let glow = |s: &Scene| s.medium.emission.iter().sum::<f64>();
     assert!(glow(&plume[0]) > glow(&plume[1]) && glow(&plume[1]) > glow(&plume[2]));
 }
+
+/// OpenVDB input through scene files: the error paths (no `.vdb` file can be produced
+/// offline here, so reading real data is not exercised by the tests).
+#[test]
+fn vdb_scene_files_report_typed_errors_naming_the_field() {
+    let base = "format = 1\n[medium]\nalbedo = 0.5\n";
+    let parse = |extra: &str| {
+        SceneFile::parse(
+            &format!("{base}{extra}"),
+            Path::new("/nonexistent-dir"),
+            Path::new("v.toml"),
+        )
+        .unwrap_err()
+    };
+    let e = parse("vdb = \"cloud.vdb\"\n");
+    assert_eq!(e.field(), Some("medium.vdb"), "{e}");
+    assert!(e.to_string().contains("cloud.vdb"), "{e}");
+    let e = parse("vdb = \"cloud.vdb\"\ngenerator = \"homogeneous\"\n");
+    assert_eq!(e.field(), Some("medium.vdb"), "{e}");
+    assert!(e.to_string().contains("not both"), "{e}");
+    let e = parse("generator = \"homogeneous\"\ngrid = \"density\"\n");
+    assert_eq!(e.field(), Some("medium.grid"), "{e}");
+}

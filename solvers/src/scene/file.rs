@@ -14,6 +14,11 @@
 //! emission = "none"              # "none", number (j per voxel), or "emission.vol"; default: the generator's (none with `file`)
 //! min = [0.0, 0.0, 0.0]          # box of the grid (both or neither; default: generator's or the
 //! max = [1.0, 1.0, 1.0]          # .vol's); voxels must be cubic: (max − min)/n equal on every axis
+//! # vdb = "cloud.vdb"            # … or σt from an OpenVDB float grid (feature `vdb`), with
+//! # grid = "density"             # the grid's name (default "density"); needs `albedo`
+//! # sigma_t_rgb = [1.0, 0.8, 0.6] # colour: per-channel scales of σt, albedo, emission make
+//! # albedo_rgb = [1.0, 1.0, 1.0]  # the scene RGB (three monochrome channels, see
+//! # emission_rgb = [1.0, 0.5, 0.2] # SceneFile::channels); generators may give RGB fields
 //!
 //! [phase]
 //! type = "hg"                    # "isotropic" (default) or "hg" with g in (−1, 1)
@@ -38,6 +43,10 @@
 //!
 //! [outputs]
 //! write = ["image"]              # "image" (camera render) and/or "fluence" (voxel grid)
+//!
+//! [effects]                      # optional restriction of the rendered effects
+//! only = ["single_scattering"]   # (see scene::effects); default: everything the scene implies
+//! exclude = ["anisotropy"]
 //! ```
 //!
 //! Every table rejects unknown keys. Errors are [`SceneFileError::Invalid`], naming the field
