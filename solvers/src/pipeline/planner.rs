@@ -161,9 +161,8 @@ pub fn plan(
                 "single scattering of light {i} is rendered and its q_ri sources multiple scattering"
             ),
             (true, false) => format!("single scattering of light {i} is rendered"),
-            _ => format!(
-                "its q_ri sources multiple scattering (its single scattering is not rendered)"
-            ),
+            _ => "its q_ri sources multiple scattering (its single scattering is not rendered)"
+                .to_string(),
         };
         baked.push(i);
         passes.push(Planned { pass, why });

@@ -514,7 +514,7 @@ mod tests {
         let m = neb.generate().unwrap();
         let frac = m.sigma_t.iter().filter(|&&s| s > 0.0).count() as f64 / m.grid.len() as f64;
         assert!(frac > 0.05 && frac < 0.5, "occupied fraction {frac}");
-        assert!(m.sigma_t.iter().any(|&s| s == 60.0));
+        assert!(m.sigma_t.contains(&60.0));
         assert!(
             ShellCore::deserialize(toml::Value::Table(toml::Table::new()))
                 .map(|mut s| {
