@@ -320,7 +320,7 @@ fn lbm_section(
         s,
         "\n## Lattice-Boltzmann diffusion limit: LB Eq 19 (`lbm_diffusion_limit/`)\n\n\
          Steady point source on a {n}³ lattice (paper's model, f64); ρ fitted with a/r + b, D_fit = 1/(4πa), against \
-         D = (2/σt − 1)/(4(1 + σa)). Kn = (1/σt)/r_min; the limit is taken to apply for Kn ≤ 0.25.\n"
+         D = (2/σt − 1)/(4(1 + σa)). Kn = (1/σt)/r_min; the limit is taken to apply for Kn ≤ 0.5.\n"
     );
     let _ = writeln!(
         s,

@@ -488,6 +488,14 @@ impl Default for LbmConfig {
 }
 
 impl LbmConfig {
+    /// The settings to compare LB with transport references (e.g. the path tracer's fluence
+    /// of the same scene): absorbed density leaves ([`Absorption::Loss`]), HG renormalised,
+    /// exponential σ mapping, flux-preserving light resolution. One call:
+    /// `lbm::solve_scene(&backend, &scene, &LbmConfig::transport())`.
+    pub fn transport() -> Self {
+        Self::default().with_absorption(Absorption::Loss)
+    }
+
     /// Builder: tolerance.
     pub fn with_tolerance(mut self, tol: f64) -> Self {
         self.tolerance = Some(tol);
