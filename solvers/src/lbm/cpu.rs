@@ -10,10 +10,10 @@
 //! collides (LB Eqs 4–6) and writes the 19 results: 19 values read and 19 written per site,
 //! streaming fused with collision, plus σs and σa (and the emission, if any) per site.
 //!
-//! Per row (y, z) the 19 source rows are copied into a padded scratch (inflow values at both
-//! ends, or a whole row of inflow where the upstream row lies outside), so the collision loop
-//! runs branch-free over chunks of [`CHUNK`] sites held in fixed-size arrays, which the
-//! compiler vectorises. Totals are summed per slab and then in slab order: results are
+//! Per row (y, z) the interior sites x ∈ [1, nx − 2] read the 19 upstream rows directly
+//! (shifted by −cᵢx; a row of inflow values where the upstream row lies outside the grid), so
+//! the collision runs branch-free as whole-row passes over equal-length slices, which the
+//! compiler vectorises; the two end sites of the row are gathered one by one. Totals are summed per slab and then in slab order: results are
 //! bit-identical for any thread count.
 
 use super::{
@@ -23,9 +23,6 @@ use crate::gpu::Timer;
 use crate::{Grid, Medium, Real, SolverError};
 use rayon::prelude::*;
 use std::time::Instant;
-
-/// Sites per inner chunk (fixed-size arrays the compiler keeps in vector registers).
-const CHUNK: usize = 16;
 
 /// Everything a step needs besides the state: the packed medium and the constants.
 #[derive(Debug, Clone)]
@@ -39,6 +36,8 @@ pub(super) struct Setup<T> {
     pub(super) src: Option<Vec<T>>,
     /// Inflow per direction, per boundary site and step (`Injection::inflow`).
     pub(super) inflow: [T; Q],
+    /// Direction i's inflow repeated over a row (nx values per direction).
+    inflow_rows: Vec<T>,
     /// Sᵢⱼ of the anisotropic kernel; `None` for isotropic scattering.
     pub(super) scatter: Option<Box<[[T; Q]; Q]>>,
     /// The kernel in f64 (GPU upload, docs).
@@ -107,6 +106,9 @@ impl<T: Real> Setup<T> {
             sa,
             src,
             inflow: inflow64.map(T::c),
+            inflow_rows: (0..Q)
+                .flat_map(|i| std::iter::repeat_n(T::c(inflow64[i]), nx))
+                .collect(),
             scatter,
             scatter64,
             reemit: config.absorption == Absorption::PaperDelay,
@@ -123,60 +125,96 @@ impl<T: Real> Setup<T> {
         Q * self.grid.n[0] * self.grid.n[1]
     }
 
-    /// Copies the 19 upstream rows of row (y, z) into `pad` (rows of nx + 2, inflow at both
-    /// ends or throughout where the upstream row is outside the grid).
-    fn pull_rows(&self, state: &[T], y: usize, z: usize, pad: &mut [T]) {
+    /// The 19 upstream rows of row (y, z): direction i's row at (y − cᵢy, z − cᵢz), or a row
+    /// of its inflow value where that lies outside the grid.
+    fn upstream<'s>(&'s self, state: &'s [T], y: usize, z: usize) -> [&'s [T]; Q] {
         let [nx, ny, nz] = self.grid.n;
-        let w = nx + 2;
-        for (i, c) in C.iter().enumerate() {
-            let row = &mut pad[i * w..(i + 1) * w];
+        std::array::from_fn(|i| {
+            let c = C[i];
             let ys = y as isize - c[1] as isize;
             let zs = z as isize - c[2] as isize;
             if ys < 0 || zs < 0 || ys >= ny as isize || zs >= nz as isize {
-                row.fill(self.inflow[i]);
+                &self.inflow_rows[i * nx..(i + 1) * nx]
             } else {
                 let start = ((zs as usize * Q + i) * ny + ys as usize) * nx;
-                row[1..nx + 1].copy_from_slice(&state[start..start + nx]);
-                row[0] = self.inflow[i];
-                row[nx + 1] = self.inflow[i];
+                &state[start..start + nx]
             }
+        })
+    }
+
+    /// Density arriving at site x of a row from upstream rows `rows` in direction i.
+    fn arriving(&self, rows: &[&[T]; Q], i: usize, x: usize) -> T {
+        let sx = x as isize - C[i][0] as isize;
+        if sx < 0 || sx >= self.grid.n[0] as isize {
+            self.inflow[i]
+        } else {
+            rows[i][sx as usize]
         }
     }
 
-    /// Collides one row: `pad` from [`Setup::pull_rows`], results into `outs` (19 rows).
+    /// Collides row (y, z) into `outs` (19 rows of nx): the interior x ∈ [1, nx − 2] straight
+    /// from the upstream rows (shifted by −cᵢx), the two end sites from gathered values.
     /// Returns (total density arriving, density absorbed and removed).
-    fn collide_row(&self, pad: &[T], y: usize, z: usize, outs: &mut [&mut [T]]) -> (f64, f64) {
+    fn row(
+        &self,
+        state: &[T],
+        y: usize,
+        z: usize,
+        outs: &mut [&mut [T]],
+        scratch: &mut [T],
+    ) -> (f64, f64) {
         let nx = self.grid.n[0];
-        let w = nx + 2;
         let base = (z * self.grid.n[1] + y) * nx;
-        let ins: Vec<&[T]> = (0..Q)
-            .map(|i| {
-                let s = (i * w) as isize + 1 - C[i][0] as isize;
-                &pad[s as usize..s as usize + nx]
-            })
-            .collect();
-        let ss = &self.ss[base..base + nx];
-        let sa = &self.sa[base..base + nx];
-        let src = self.src.as_ref().map(|s| &s[base..base + nx]);
-        match &self.scatter {
-            None => collide::<T, true>(&ins, ss, sa, src, self.reemit, None, outs),
-            Some(s) => collide::<T, false>(&ins, ss, sa, src, self.reemit, Some(s), outs),
+        let rows = self.upstream(state, y, z);
+        let run =
+            |ins: &[&[T]; Q], lo: usize, hi: usize, outs: &mut [&mut [T]], scratch: &mut [T]| {
+                let mut o: Vec<&mut [T]> = outs.iter_mut().map(|r| &mut r[lo..hi]).collect();
+                let (ss, sa) = (
+                    &self.ss[base + lo..base + hi],
+                    &self.sa[base + lo..base + hi],
+                );
+                let src = self.src.as_ref().map(|s| &s[base + lo..base + hi]);
+                match &self.scatter {
+                    None => {
+                        collide::<T, true>(ins, ss, sa, src, self.reemit, None, &mut o, scratch)
+                    }
+                    Some(s) => {
+                        collide::<T, false>(ins, ss, sa, src, self.reemit, Some(s), &mut o, scratch)
+                    }
+                }
+            };
+        let (mut total, mut absorbed) = (0.0, 0.0);
+        if nx > 2 {
+            let ins: [&[T]; Q] = std::array::from_fn(|i| {
+                let off = (1 - C[i][0]) as usize;
+                &rows[i][off..off + nx - 2]
+            });
+            let (t, a) = run(&ins, 1, nx - 1, outs, scratch);
+            total += t;
+            absorbed += a;
         }
+        for x in [0, nx - 1] {
+            let vals: [T; Q] = std::array::from_fn(|i| self.arriving(&rows, i, x));
+            let ins: [&[T]; Q] = std::array::from_fn(|i| std::slice::from_ref(&vals[i]));
+            let (t, a) = run(&ins, x, x + 1, outs, scratch);
+            total += t;
+            absorbed += a;
+        }
+        (total, absorbed)
     }
 
     /// One step of z-slab `z`: reads `state`, writes the slab `out`; returns (total, outflow,
     /// absorbed) of the slab.
-    fn step_slab(&self, state: &[T], z: usize, out: &mut [T], pad: &mut [T]) -> [f64; 3] {
+    fn step_slab(&self, state: &[T], z: usize, out: &mut [T], scratch: &mut [T]) -> [f64; 3] {
         let [nx, ny, nz] = self.grid.n;
         let mut planes: Vec<&mut [T]> = out.chunks_mut(nx * ny).collect();
         let (mut total, mut outflow, mut absorbed) = (0.0, 0.0, 0.0);
         for y in 0..ny {
-            self.pull_rows(state, y, z, pad);
             let mut outs: Vec<&mut [T]> = planes
                 .iter_mut()
                 .map(|p| &mut p[y * nx..(y + 1) * nx])
                 .collect();
-            let (t, a) = self.collide_row(pad, y, z, &mut outs);
+            let (t, a) = self.row(state, y, z, &mut outs, scratch);
             total += t;
             absorbed += a;
             // Sink: post-collision density whose downstream site is outside the grid.
@@ -185,7 +223,7 @@ impl<T: Real> Setup<T> {
                 let zd = z as isize + c[2] as isize;
                 let row = &outs[i];
                 if yd < 0 || zd < 0 || yd >= ny as isize || zd >= nz as isize {
-                    outflow += row.iter().fold(T::zero(), |a, &b| a + b).f();
+                    outflow += lane_sum(row);
                 } else if c[0] == 1 {
                     outflow += row[nx - 1].f();
                 } else if c[0] == -1 {
@@ -207,17 +245,16 @@ impl<T: Real> Setup<T> {
             .zip(rho.par_chunks_mut(nx * ny))
             .enumerate()
             .for_each(|(z, (phi, rho))| {
-                let mut pad = vec![T::zero(); Q * (nx + 2)];
+                let mut scratch = vec![T::zero(); 4 * nx];
                 let mut tmp = vec![T::zero(); Q * nx];
                 for y in 0..ny {
-                    self.pull_rows(state, y, z, &mut pad);
                     let mut outs: Vec<&mut [T]> = tmp.chunks_mut(nx).collect();
-                    self.collide_row(&pad, y, z, &mut outs);
+                    self.row(state, y, z, &mut outs, &mut scratch);
+                    let rows = self.upstream(state, y, z);
                     for x in 0..nx {
                         let (mut p, mut r) = (T::zero(), T::zero());
                         for i in 0..Q {
-                            let inv =
-                                pad[i * (nx + 2) + (x as isize + 1 - C[i][0] as isize) as usize];
+                            let inv = self.arriving(&rows, i, x);
                             p = p + weights[i] * (inv + outs[i][x]);
                             if i > 0 || self.reemit {
                                 r = r + inv;
@@ -232,92 +269,97 @@ impl<T: Real> Setup<T> {
     }
 }
 
-/// The collision of LB Eqs 4–6 over one row, in chunks of [`CHUNK`] sites.
+/// Σ of a row in a fixed order (eight interleaved partial sums: deterministic and
+/// vectorisable), widened to f64.
+fn lane_sum<T: Real>(v: &[T]) -> f64 {
+    let mut lanes = [T::zero(); 8];
+    let chunks = v.chunks_exact(8);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for (l, &x) in lanes.iter_mut().zip(c) {
+            *l = *l + x;
+        }
+    }
+    lanes.iter().chain(tail).fold(T::zero(), |a, &b| a + b).f()
+}
+
+/// The collision of LB Eqs 4–6 over one row, as whole-row passes over equal-length slices
+/// (each a simple zip the compiler vectorises). `scratch` holds at least 4 rows.
 /// `ISO`: Sᵢⱼ = wᵢ (no matrix product). Returns (Σ arriving density, Σ removed absorption).
 #[allow(clippy::too_many_arguments)]
 fn collide<T: Real, const ISO: bool>(
-    ins: &[&[T]],
+    ins: &[&[T]; Q],
     ss: &[T],
     sa: &[T],
     src: Option<&[T]>,
     reemit: bool,
     scatter: Option<&[[T; Q]; Q]>,
     outs: &mut [&mut [T]],
+    scratch: &mut [T],
 ) -> (f64, f64) {
     let n = ss.len();
-    let w: [T; Q] = std::array::from_fn(|i| T::c(W[i]));
-    let (w_ax, w_dg) = (w[1], w[7]);
-    let rest_on = if reemit { T::one() } else { T::zero() };
-    let (mut total, mut absorbed) = (0.0, 0.0);
-    let mut x0 = 0;
-    while x0 < n {
-        let len = (n - x0).min(CHUNK);
-        let mut f = [[T::zero(); CHUNK]; Q];
-        for (fi, inp) in f.iter_mut().zip(ins) {
-            fi[..len].copy_from_slice(&inp[x0..x0 + len]);
+    let (m, rest) = scratch.split_at_mut(n);
+    let (keep, rest) = rest.split_at_mut(n);
+    let (iso, rest) = rest.split_at_mut(n);
+    let acc = &mut rest[..n];
+    let sa = &sa[..n];
+    // m = Σⱼ₌₁¹⁸ inⱼ, in direction order (the GPU's order).
+    m.copy_from_slice(&ins[1][..n]);
+    for inp in &ins[2..] {
+        for (mq, &v) in m.iter_mut().zip(&inp[..n]) {
+            *mq = *mq + v;
         }
-        let (mut s_s, mut s_a, mut e) =
-            ([T::zero(); CHUNK], [T::zero(); CHUNK], [T::zero(); CHUNK]);
-        s_s[..len].copy_from_slice(&ss[x0..x0 + len]);
-        s_a[..len].copy_from_slice(&sa[x0..x0 + len]);
-        if let Some(src) = src {
-            e[..len].copy_from_slice(&src[x0..x0 + len]);
+    }
+    let rest_in = &ins[0][..n];
+    let mut total = lane_sum(m);
+    if reemit {
+        total += lane_sum(rest_in);
+    }
+    for (((k, i), (&s, &a)), (&mq, &r)) in keep
+        .iter_mut()
+        .zip(iso.iter_mut())
+        .zip(ss.iter().zip(sa))
+        .zip(m.iter().zip(rest_in))
+    {
+        *k = T::one() - s - a;
+        let r = if reemit { r } else { T::zero() };
+        // Re-emission (column 0) and emission share the isotropic weights.
+        *i = if ISO { s * mq + r } else { r };
+    }
+    if let Some(e) = src {
+        for (i, &e) in iso.iter_mut().zip(&e[..n]) {
+            *i = *i + e;
         }
-        let mut m = [T::zero(); CHUNK];
-        for fi in &f[1..] {
-            for q in 0..CHUNK {
-                m[q] = m[q] + fi[q];
-            }
-        }
-        let mut o = [[T::zero(); CHUNK]; Q];
-        let mut keep = [T::zero(); CHUNK];
-        let mut iso = [T::zero(); CHUNK];
-        let mut tot = [T::zero(); CHUNK];
-        for q in 0..CHUNK {
-            keep[q] = T::one() - s_s[q] - s_a[q];
-            o[0][q] = s_a[q] * m[q];
-            let rest = rest_on * f[0][q];
-            tot[q] = m[q] + rest;
-            // Re-emission (column 0) and emission share the isotropic weights.
-            iso[q] = if ISO {
-                s_s[q] * m[q] + rest + e[q]
-            } else {
-                rest + e[q]
-            };
-        }
+    }
+    for ((o, &a), &mq) in outs[0][..n].iter_mut().zip(sa).zip(m.iter()) {
+        *o = a * mq;
+    }
+    let absorbed = if reemit { 0.0 } else { lane_sum(&outs[0][..n]) };
+    for i in 1..Q {
+        let wi = T::c(W[i]);
+        let fi = &ins[i][..n];
+        let out = &mut outs[i][..n];
         if ISO {
-            for i in 1..Q {
-                let wi = if i <= 6 { w_ax } else { w_dg };
-                let (fi, oi) = (&f[i], &mut o[i]);
-                for q in 0..CHUNK {
-                    oi[q] = keep[q] * fi[q] + wi * iso[q];
-                }
+            for ((o, &f), (&k, &e)) in out.iter_mut().zip(fi).zip(keep.iter().zip(iso.iter())) {
+                *o = k * f + wi * e;
             }
         } else if let Some(s) = scatter {
-            for i in 1..Q {
-                let mut acc = [T::zero(); CHUNK];
-                for j in 1..Q {
-                    let sij = s[i][j];
-                    let fj = &f[j];
-                    for q in 0..CHUNK {
-                        acc[q] = acc[q] + sij * fj[q];
-                    }
-                }
-                let wi = w[i];
-                let (fi, oi) = (&f[i], &mut o[i]);
-                for q in 0..CHUNK {
-                    oi[q] = keep[q] * fi[q] + s_s[q] * acc[q] + wi * iso[q];
+            acc.fill(T::zero());
+            for (j, inp) in ins.iter().enumerate().skip(1) {
+                let sij = s[i][j];
+                for (a, &v) in acc.iter_mut().zip(&inp[..n]) {
+                    *a = *a + sij * v;
                 }
             }
+            for (((o, &f), (&k, &e)), (&a, &sv)) in out
+                .iter_mut()
+                .zip(fi)
+                .zip(keep.iter().zip(iso.iter()))
+                .zip(acc.iter().zip(ss))
+            {
+                *o = k * f + sv * a + wi * e;
+            }
         }
-        for (oi, out) in o.iter().zip(outs.iter_mut()) {
-            out[x0..x0 + len].copy_from_slice(&oi[..len]);
-        }
-        total += tot[..len].iter().fold(T::zero(), |a, &b| a + b).f();
-        if !reemit {
-            absorbed += o[0][..len].iter().fold(T::zero(), |a, &b| a + b).f();
-        }
-        x0 += len;
     }
     (total, absorbed)
 }
@@ -390,8 +432,8 @@ impl<T: Real> CpuLbm<T> {
             .par_chunks_mut(slab)
             .enumerate()
             .map_init(
-                || vec![T::zero(); Q * (nx + 2)],
-                |pad, (z, out)| setup.step_slab(state, z, out, pad),
+                || vec![T::zero(); 4 * nx],
+                |scratch, (z, out)| setup.step_slab(state, z, out, scratch),
             )
             .collect();
         std::mem::swap(&mut self.state, &mut self.next);
