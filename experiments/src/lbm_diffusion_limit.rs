@@ -174,10 +174,10 @@ pub fn run(args: &Args) -> Result<Vec<CaseRow>> {
         let mut pts = Vec::new();
         for idx in 0..grid.len() {
             let [i, j, k] = grid.coords(idx);
-            let r = (((i as f64 - c as f64).powi(2)
+            let r = ((i as f64 - c as f64).powi(2)
                 + (j as f64 - c as f64).powi(2)
-                + (k as f64 - c as f64).powi(2)) as f64)
-                .sqrt();
+                + (k as f64 - c as f64).powi(2))
+            .sqrt();
             if r >= args.r_min && r <= r_max {
                 let (x, y) = (1.0 / r, sol.rho[idx]);
                 sx += x;

@@ -1,6 +1,8 @@
 //! Unit tests of the lattice, Θ, the light resolution, the unit mapping and the kernel
 //! against a plain implementation of LB Appendix B.
 
+#![allow(clippy::needless_range_loop)]
+
 use super::*;
 use crate::noise::SplitMix64;
 use proptest::prelude::*;
