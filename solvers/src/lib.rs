@@ -6,6 +6,7 @@
 //! | module | method | paper |
 //! |---|---|---|
 //! | [`fld`] | classical diffusion (CDA) and flux-limited diffusion (FLD), red-black SOR | Koerner et al., *Flux-Limited Diffusion for Multiple Scattering in Participating Media* (FLD Eqs 30–37, Algorithm 1) |
+//! | [`lbm`] | lattice-Boltzmann lighting, D3Q19 photon transport | Geist et al., *Lattice-Boltzmann Lighting* (LB Eqs 3–6, 19, Appendices A–B) |
 //!
 //! Shared building blocks: [`grid`] (the voxel grid), [`medium`] (σt, albedo and emission
 //! fields), [`scene`] (medium + phase + lights + camera, shared with the path tracer),
@@ -22,6 +23,7 @@ pub mod error;
 pub mod fld;
 pub mod gpu;
 pub mod grid;
+pub mod lbm;
 pub mod medium;
 pub mod noise;
 pub mod real;
