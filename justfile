@@ -25,6 +25,10 @@ mitsuba-compare:
 bench-gpu:
     cargo bench -p benches --bench diffusion_gpu
 
+# Lattice-Boltzmann step, CPU f32/f64 and GPU, with the bandwidth probes; writes results/bench/lbm.csv
+bench-lbm:
+    cargo bench -p benches --bench lbm
+
 # Criterion benchmarks with the bandwidth probe; writes results/bench/
 bench:
     cargo bench -p benches

@@ -9,6 +9,8 @@
 
 pub mod common;
 pub mod convergence;
+pub mod lbm_convergence;
+pub mod lbm_diffusion_limit;
 pub mod mitsuba_compare;
 pub mod plot;
 pub mod point_source;

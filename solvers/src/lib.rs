@@ -6,6 +6,7 @@
 //! | module | method | paper |
 //! |---|---|---|
 //! | [`fld`] | classical diffusion (CDA) and flux-limited diffusion (FLD), red-black SOR | Koerner et al., *Flux-Limited Diffusion for Multiple Scattering in Participating Media* (FLD Eqs 30–37, Algorithm 1) |
+//! | [`lbm`] | lattice-Boltzmann lighting, D3Q19 photon transport | Geist et al., *Lattice-Boltzmann Lighting* (LB Eqs 3–6, 19, Appendices A–B) |
 //! | [`pipeline`] | light baking → diffusion → primary raymarch, planned from the scene's effects | FLD Fig 2, Eqs 3, 6, 8, Section 6.2 |
 //!
 //! Shared building blocks: [`grid`] (the voxel grid), [`medium`] (σt, albedo and emission
@@ -23,6 +24,7 @@ pub mod error;
 pub mod fld;
 pub mod gpu;
 pub mod grid;
+pub mod lbm;
 pub mod medium;
 pub mod noise;
 pub mod pipeline;

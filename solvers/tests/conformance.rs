@@ -1,63 +1,17 @@
 //! Backend conformance: one test body per case, instantiated for CPU-f32, CPU-f64 and the GPU
 //! (issue "GPU backend pattern"), plus GPU-vs-CPU-f32 agreement.
 //!
-//! GPU tests share one device and run one at a time. Without an adapter each prints
-//! "<test>: skipped: no GPU adapter" and passes, unless `SCATTERBENCH_REQUIRE_GPU=1` (CI),
-//! which makes them fail.
+//! GPU tests share one device and run one at a time (helpers in `common/mod.rs`).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+use common::on_backend;
 
 use reference::point_source::{PointSource, Solution};
 use solvers::fld::{self, Boundary, FldConfig, FldSolution, FluxLimiter};
 use solvers::gpu::GpuContext;
 use solvers::{Backend, Medium, Precision, scenes};
-use std::sync::{Mutex, OnceLock};
-
-static GPU: OnceLock<Option<Mutex<GpuContext>>> = OnceLock::new();
-
-/// Runs `body` on the named backend; the GPU one is skipped (with one line) when no adapter
-/// exists and the environment does not require one.
-fn on_backend(kind: &str, test: &str, body: impl FnOnce(&Backend<'_>)) {
-    match kind {
-        "cpu-f32" => body(&Backend::Cpu(Precision::F32)),
-        "cpu-f64" => body(&Backend::Cpu(Precision::F64)),
-        _ => {
-            let gpu = GPU.get_or_init(|| {
-                GpuContext::for_tests()
-                    .unwrap_or_else(|e| panic!("SCATTERBENCH_REQUIRE_GPU is set: {e}"))
-                    .map(Mutex::new)
-            });
-            match gpu {
-                None => solvers::gpu::log_uncaptured(&format!("{test}: skipped: no GPU adapter")),
-                Some(m) => {
-                    let ctx = m.lock().unwrap_or_else(|e| e.into_inner());
-                    solvers::gpu::log_uncaptured(&format!("{test}: ran on {}", ctx.describe()));
-                    body(&Backend::Gpu(&ctx));
-                }
-            }
-        }
-    }
-}
-
-/// One test per backend for each case function `fn(&Backend)`.
-macro_rules! conformance {
-    ($($case:ident),* $(,)?) => {$(
-        mod $case {
-            #[test]
-            fn cpu_f32() {
-                super::on_backend("cpu-f32", concat!(stringify!($case), "::cpu_f32"), super::$case);
-            }
-            #[test]
-            fn cpu_f64() {
-                super::on_backend("cpu-f64", concat!(stringify!($case), "::cpu_f64"), super::$case);
-            }
-            #[test]
-            fn gpu() {
-                super::on_backend("gpu", concat!(stringify!($case), "::gpu"), super::$case);
-            }
-        }
-    )*};
-}
 
 conformance!(
     point_source_cda_matches_eq_27,
