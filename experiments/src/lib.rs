@@ -7,13 +7,16 @@
 //! `results/README.md`.
 #![deny(missing_docs)]
 
+pub mod accuracy_cost;
 pub mod common;
 pub mod convergence;
 pub mod mitsuba_compare;
+pub mod images;
 pub mod plot;
 pub mod point_source;
 pub mod point_source_analytic;
 pub mod pt_point_source;
 pub mod pt_render;
 pub mod pt_slab;
+pub mod renderings;
 pub mod transport_references;
