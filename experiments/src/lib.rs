@@ -7,10 +7,12 @@
 //! `results/README.md`.
 #![deny(missing_docs)]
 
+pub mod accuracy_cost;
 pub mod common;
 pub mod convergence;
 pub mod lbm_convergence;
 pub mod lbm_diffusion_limit;
+pub mod images;
 pub mod mitsuba_compare;
 pub mod plot;
 pub mod point_source;
@@ -19,4 +21,5 @@ pub mod pt_point_source;
 pub mod pt_render;
 pub mod pt_slab;
 pub mod render;
+pub mod renderings;
 pub mod transport_references;

@@ -1,0 +1,672 @@
+//! The accuracy-versus-time atlas: for each dataset and every method setting, the wall time
+//! of a render and its image error against a converged path-traced reference.
+//!
+//! **Reference.** The path tracer renders the scene's effect set (the file's `[effects]`
+//! restriction applied) component by component (`reference::effects::render_components`:
+//! single scattering, multiple scattering, emission) at `--reference-spp` samples per
+//! pixel, seed `--seed`. Its own noise, √Σse²/√Σr² over all channels and pixels, is the
+//! `error_stderr` of every point of that scene: the error a perfect method would show.
+//!
+//! **Error.** Relative RMSE over all channels and pixels of the total image,
+//! √Σ(a − r)²/√Σr² ([`crate::images::relative_rmse`]); `error_debiased` removes the
+//! reference variance; `error_single` / `error_multiple` are the same metric per component
+//! (relative to that component of the reference).
+//!
+//! **Methods** are registered in [`METHODS`], one entry each: a name, the settings it is
+//! run with, and a function that renders one setting. The path tracer itself is a method
+//! (settings: samples per pixel, an independent seed), which gives its error-vs-time curve.
+//! A grid method's time is the wall clock of the whole render (light baking, diffusion
+//! solve, raymarch), on each selected backend.
+//!
+//! **Outputs** (`results/accuracy_cost/`): `points.csv`
+//! (`scene,method,setting,backend,seconds,error,error_stderr` and more), a log–log Pareto
+//! plot per scene (`pareto_<scene>.png`), `fastest.csv` (per scene and error target 5 %,
+//! 2 %, 1 %: the fastest point that reaches it), `references.csv` and `meta.json`.
+
+use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress, workspace_root};
+use crate::images::{relative_noise, relative_rmse, relative_rmse_debiased};
+use crate::plot::{Axis, Series, Style, plot};
+use anyhow::{Context, Result, bail};
+use reference::effects::{PtComponents, render_components};
+use reference::pathtracer::{Contributions, RenderSettings};
+use serde::Serialize;
+use solvers::fld::{FldConfig, FluxLimiter};
+use solvers::pipeline::{self, ChannelImages, DiffusionMethod, PipelineConfig};
+use solvers::scene::{EffectSelection, Effects, Scene, SceneFile};
+use solvers::{Backend, Precision};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// The datasets of the atlas (scene files relative to the workspace root).
+pub const DEFAULT_SCENES: &str =
+    "scenes/nebula.toml,scenes/emissive_cloud.toml,scenes/shell_core.toml,scenes/plume.toml";
+
+/// Error targets of `fastest.csv`.
+pub const TARGETS: [f64; 3] = [0.05, 0.02, 0.01];
+
+/// Flags of `accuracy_cost`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(about = "Accuracy versus time of every method setting against a path-traced reference")]
+pub struct Args {
+    /// Shared flags.
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Shared backend flag (grid methods run on each; the path tracer on the CPU).
+    #[command(flatten)]
+    pub backend: BackendArgs,
+    /// Scene files, comma-separated.
+    #[arg(long, default_value = DEFAULT_SCENES)]
+    pub scenes: String,
+    /// Samples per pixel of the reference (default 4096; 256 with --quick).
+    #[arg(long)]
+    pub reference_spp: Option<u32>,
+    /// Samples per pixel of the path tracer's own points, each ≥ 16 (default
+    /// 16,64,256,1024; 16,32 with --quick).
+    #[arg(long)]
+    pub spp: Option<String>,
+    /// Methods to run (names from the registry, comma-separated; default all).
+    #[arg(long)]
+    pub methods: Option<String>,
+    /// Coarsen every scene's medium by this factor first (conservative restriction; the
+    /// reference sees the same coarsened scene). Default 1 (2 with --quick).
+    #[arg(long)]
+    pub coarsen: Option<usize>,
+    /// Override the camera resolution, `W,H` (default: the scene's; 24,24 with --quick).
+    #[arg(long)]
+    pub resolution: Option<String>,
+    /// Seed of the reference (the path tracer's points use seed + 1000).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// One point of the atlas.
+#[derive(Debug, Clone, Serialize)]
+pub struct Point {
+    /// Scene (file stem).
+    pub scene: String,
+    /// Method name from the registry.
+    pub method: String,
+    /// The setting, e.g. `ds=4 tol=1e-3 f32`.
+    pub setting: String,
+    /// `cpu-f32`, `cpu-f64`, `gpu-f32`.
+    pub backend: String,
+    /// Wall-clock seconds of the render.
+    pub seconds: f64,
+    /// Relative RMSE of the total image against the reference.
+    pub error: f64,
+    /// The reference's own relative noise (same metric).
+    pub error_stderr: f64,
+    /// `error` with the reference variance removed.
+    pub error_debiased: f64,
+    /// Relative RMSE of the single-scattering component (NaN if the scene has none).
+    pub error_single: f64,
+    /// Relative RMSE of the multiple-scattering component (NaN if the scene has none).
+    pub error_multiple: f64,
+    /// What else the method reports (iterations, passes).
+    pub detail: String,
+}
+
+/// A scene prepared for the atlas: its channels, effect set and reference.
+#[derive(Debug)]
+pub struct Prepared {
+    /// File stem.
+    pub name: String,
+    /// Monochrome scene per colour channel (coarsened, resolution overridden).
+    pub channels: Vec<Scene>,
+    /// The file's `[effects]` restriction.
+    pub selection: EffectSelection,
+    /// The effects rendered.
+    pub effects: Effects,
+    /// Reference per channel.
+    pub reference: Vec<PtComponents>,
+    /// Seconds the reference took.
+    pub reference_seconds: f64,
+    /// Its samples per pixel.
+    pub reference_spp: u32,
+}
+
+/// A method setting.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Setting {
+    /// How it appears in `points.csv`.
+    pub label: String,
+    /// Diffusion grid downsampling factor.
+    pub downsample: usize,
+    /// Solver tolerance.
+    pub tolerance: f64,
+    /// CPU precision (GPU runs are f32 and skip f64 settings).
+    pub precision: Precision,
+    /// Samples per pixel (path tracer).
+    pub spp: u32,
+}
+
+/// What one render of a method returns: the components per channel and its wall time.
+#[derive(Debug)]
+pub struct Run {
+    /// Per channel.
+    pub images: Vec<ChannelImages>,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Free-form detail (iterations etc.).
+    pub detail: String,
+}
+
+/// One render job.
+#[derive(Debug)]
+pub struct Job<'a> {
+    /// The scene.
+    pub scene: &'a Prepared,
+    /// The setting.
+    pub setting: &'a Setting,
+    /// Where grid solvers run.
+    pub backend: &'a Backend<'a>,
+    /// Seed for stochastic methods.
+    pub seed: u64,
+}
+
+/// A registered method: the one place a method joins the atlas.
+#[derive(Debug)]
+pub struct MethodEntry {
+    /// Name in `points.csv` and `--methods`.
+    pub name: &'static str,
+    /// Whether it runs on the GPU backend too (else CPU only).
+    pub gpu: bool,
+    /// Its settings (`quick` for CI-sized runs; `spp` is the path tracer's ladder).
+    pub settings: fn(quick: bool, spp: &[u32]) -> Vec<Setting>,
+    /// Renders one setting.
+    pub run: fn(&Job<'_>) -> Result<Run>,
+}
+
+/// Every method of the atlas. Add one line per method.
+pub static METHODS: &[MethodEntry] = &[
+    MethodEntry {
+        name: "pt",
+        gpu: false,
+        settings: pt_settings,
+        run: run_pt,
+    },
+    MethodEntry {
+        name: "cda",
+        gpu: true,
+        settings: grid_settings,
+        run: |job| run_grid(job, DiffusionMethod::Cda),
+    },
+    MethodEntry {
+        name: "fld:lp",
+        gpu: true,
+        settings: grid_settings,
+        run: |job| run_grid(job, DiffusionMethod::Fld(FluxLimiter::LevermorePomraning)),
+    },
+];
+
+fn pt_settings(_quick: bool, spp: &[u32]) -> Vec<Setting> {
+    spp.iter()
+        .map(|&s| Setting {
+            label: format!("spp={s}"),
+            downsample: 1,
+            tolerance: 0.0,
+            precision: Precision::F64,
+            spp: s,
+        })
+        .collect()
+}
+
+/// Downsampling × tolerance × precision. Full: ds ∈ {1, 2, 4}, tol ∈ {1e-2, 1e-3, 1e-4},
+/// f32 and f64; quick: ds ∈ {2, 4}, tol 1e-3, f32.
+fn grid_settings(quick: bool, _spp: &[u32]) -> Vec<Setting> {
+    let (ds, tols, precs): (&[usize], &[f64], &[Precision]) = if quick {
+        (&[2, 4], &[1e-3], &[Precision::F32])
+    } else {
+        (
+            &[1, 2, 4],
+            &[1e-2, 1e-3, 1e-4],
+            &[Precision::F32, Precision::F64],
+        )
+    };
+    let mut v = Vec::new();
+    for &d in ds {
+        for &t in tols {
+            for &p in precs {
+                v.push(Setting {
+                    label: format!(
+                        "ds={d} tol={t:e} {}",
+                        if p == Precision::F32 { "f32" } else { "f64" }
+                    ),
+                    downsample: d,
+                    tolerance: t,
+                    precision: p,
+                    spp: 0,
+                });
+            }
+        }
+    }
+    v
+}
+
+fn run_pt(job: &Job<'_>) -> Result<Run> {
+    let settings = RenderSettings {
+        spp: job.setting.spp,
+        seed: job.seed,
+        batches: reference::pathtracer::MIN_BATCHES,
+        contributions: Contributions::all(),
+    };
+    let t0 = Instant::now();
+    let mut images = Vec::new();
+    for ch in &job.scene.channels {
+        let c = render_components(ch, &job.scene.effects, &settings)
+            .context("path tracing a point of the atlas")?;
+        images.push(to_channel_images(&c));
+    }
+    Ok(Run {
+        images,
+        seconds: t0.elapsed().as_secs_f64(),
+        detail: format!("spp={}", settings.spp),
+    })
+}
+
+fn to_channel_images(c: &PtComponents) -> ChannelImages {
+    ChannelImages {
+        total: c.total.mean.clone(),
+        single: c.single.mean.clone(),
+        multiple: c.multiple.mean.clone(),
+        emission: c.emission.mean.clone(),
+    }
+}
+
+fn run_grid(job: &Job<'_>, method: DiffusionMethod) -> Result<Run> {
+    let config = PipelineConfig {
+        method,
+        downsample: job.setting.downsample,
+        fld: FldConfig {
+            tolerance: Some(job.setting.tolerance),
+            ..FldConfig::default()
+        },
+        ..PipelineConfig::default()
+    };
+    let t0 = Instant::now();
+    let r = pipeline::render_channels(&job.scene.channels, &job.scene.selection, &config, job.backend)
+        .with_context(|| format!("rendering with {method} ({})", job.setting.label))?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let iterations: Vec<String> = r
+        .diffusion
+        .iter()
+        .map(|d| format!("{}:{}", d.iterations, d.status))
+        .collect();
+    Ok(Run {
+        images: r.channels,
+        seconds,
+        detail: format!("iterations={}", iterations.join("/")),
+    })
+}
+
+/// Loads, coarsens and re-frames a scene file (no reference yet: [`render_reference`]).
+pub fn load(
+    path: &std::path::Path,
+    coarsen: usize,
+    resolution: Option<[usize; 2]>,
+) -> Result<Prepared> {
+    let file = SceneFile::load(path).with_context(|| format!("loading {}", path.display()))?;
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    let mut channels = file.channels();
+    for ch in &mut channels {
+        if coarsen > 1 {
+            let q = ch.medium.emission.clone();
+            ch.medium = pipeline::restrict::restrict(&ch.medium, &q, coarsen, 0)
+                .with_context(|| format!("coarsening {name} by {coarsen}"))?;
+        }
+        if let (Some(res), Some(cam)) = (resolution, ch.camera.as_mut()) {
+            cam.resolution = res;
+        }
+    }
+    let config = PipelineConfig::default();
+    let (_, effects) = pipeline::effects_of(&channels, &file.effects, &config)
+        .with_context(|| format!("the effects of {name}"))?;
+    Ok(Prepared {
+        name,
+        channels,
+        selection: file.effects.clone(),
+        effects,
+        reference: Vec::new(),
+        reference_seconds: 0.0,
+        reference_spp: 0,
+    })
+}
+
+/// Renders the path-traced reference of every channel (`spp` ≥ 16 samples per pixel,
+/// up to 32 batches).
+pub fn render_reference(scene: &mut Prepared, spp: u32, seed: u64) -> Result<()> {
+    let settings = RenderSettings {
+        spp,
+        seed,
+        batches: 32.min(spp),
+        contributions: Contributions::all(),
+    };
+    let t0 = Instant::now();
+    scene.reference = scene
+        .channels
+        .iter()
+        .map(|ch| render_components(ch, &scene.effects, &settings))
+        .collect::<Result<Vec<_>, _>>()
+        .with_context(|| format!("path-traced reference of {}", scene.name))?;
+    scene.reference_seconds = t0.elapsed().as_secs_f64();
+    scene.reference_spp = spp;
+    Ok(())
+}
+
+/// The errors of a run against the prepared reference: (total, debiased, single, multiple,
+/// reference noise).
+pub fn errors(scene: &Prepared, images: &[ChannelImages]) -> (f64, f64, f64, f64, f64) {
+    let pick = |f: fn(&ChannelImages) -> &Vec<f64>| -> Vec<&[f64]> {
+        images.iter().map(|c| f(c).as_slice()).collect()
+    };
+    let refs = |f: fn(&PtComponents) -> &Vec<f64>| -> Vec<&[f64]> {
+        scene.reference.iter().map(|c| f(c).as_slice()).collect()
+    };
+    let total = pick(|c| &c.total);
+    let rt = refs(|c| &c.total.mean);
+    let se = refs(|c| &c.total.stderr);
+    (
+        relative_rmse(&total, &rt),
+        relative_rmse_debiased(&total, &rt, &se),
+        relative_rmse(&pick(|c| &c.single), &refs(|c| &c.single.mean)),
+        relative_rmse(&pick(|c| &c.multiple), &refs(|c| &c.multiple.mean)),
+        relative_noise(&se, &rt),
+    )
+}
+
+/// The reference's noise row.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReferenceRow {
+    /// Scene.
+    pub scene: String,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Seconds.
+    pub seconds: f64,
+    /// Relative noise of the total image.
+    pub noise: f64,
+    /// Channels.
+    pub channels: usize,
+    /// Effects rendered.
+    pub effects: String,
+}
+
+/// The fastest point reaching an error target.
+#[derive(Debug, Clone, Serialize)]
+pub struct Fastest {
+    /// Scene.
+    pub scene: String,
+    /// Target relative RMSE.
+    pub target: f64,
+    /// Method (empty if none reached it).
+    pub method: String,
+    /// Setting.
+    pub setting: String,
+    /// Backend.
+    pub backend: String,
+    /// Seconds.
+    pub seconds: f64,
+    /// Its error.
+    pub error: f64,
+    /// Whether the target is above the reference's noise (else it cannot be resolved).
+    pub resolvable: bool,
+}
+
+/// For each scene and target, the fastest point with `error ≤ target`.
+pub fn fastest(points: &[Point]) -> Vec<Fastest> {
+    let mut scenes: Vec<&str> = points.iter().map(|p| p.scene.as_str()).collect();
+    scenes.dedup();
+    let mut out = Vec::new();
+    for s in scenes {
+        for &t in &TARGETS {
+            let best = points
+                .iter()
+                .filter(|p| p.scene == s && p.error <= t)
+                .min_by(|a, b| a.seconds.total_cmp(&b.seconds));
+            let noise = points
+                .iter()
+                .find(|p| p.scene == s)
+                .map_or(f64::NAN, |p| p.error_stderr);
+            out.push(match best {
+                Some(p) => Fastest {
+                    scene: s.into(),
+                    target: t,
+                    method: p.method.clone(),
+                    setting: p.setting.clone(),
+                    backend: p.backend.clone(),
+                    seconds: p.seconds,
+                    error: p.error,
+                    resolvable: noise < t,
+                },
+                None => Fastest {
+                    scene: s.into(),
+                    target: t,
+                    method: String::new(),
+                    setting: String::new(),
+                    backend: String::new(),
+                    seconds: f64::NAN,
+                    error: f64::NAN,
+                    resolvable: noise < t,
+                },
+            });
+        }
+    }
+    out
+}
+
+/// The points on the Pareto front (no other point both faster and more accurate), by time.
+pub fn pareto(points: &[&Point]) -> Vec<(f64, f64)> {
+    let mut v: Vec<(f64, f64)> = points
+        .iter()
+        .filter(|p| p.error.is_finite() && p.seconds > 0.0)
+        .map(|p| (p.seconds, p.error))
+        .collect();
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut front = Vec::new();
+    let mut best = f64::INFINITY;
+    for (t, e) in v {
+        if e < best {
+            best = e;
+            front.push((t, e));
+        }
+    }
+    front
+}
+
+fn parse_resolution(s: &str) -> Result<[usize; 2]> {
+    let v: Vec<usize> = parse_list("resolution", s)?;
+    match v.as_slice() {
+        [w, h] if *w > 0 && *h > 0 => Ok([*w, *h]),
+        _ => bail!("--resolution must be W,H with W, H > 0, got `{s}`"),
+    }
+}
+
+/// Runs the atlas; returns its points.
+pub fn run(args: &Args) -> Result<Vec<Point>> {
+    let quick = args.common.quick;
+    let ref_spp = args.reference_spp.unwrap_or(if quick { 256 } else { 4096 });
+    let spp: Vec<u32> = match &args.spp {
+        Some(s) => parse_list("spp", s)?,
+        None if quick => vec![16, 32],
+        None => vec![16, 64, 256, 1024],
+    };
+    if let Some(s) = spp.iter().find(|&&s| s < reference::pathtracer::MIN_BATCHES) {
+        bail!(
+            "--spp: {s} is below {} (the batches of a standard error)",
+            reference::pathtracer::MIN_BATCHES
+        );
+    }
+    let coarsen = args.coarsen.unwrap_or(if quick { 2 } else { 1 });
+    if coarsen == 0 {
+        bail!("--coarsen must be at least 1");
+    }
+    let resolution = match &args.resolution {
+        Some(s) => Some(parse_resolution(s)?),
+        None if quick => Some([24, 24]),
+        None => None,
+    };
+    let wanted: Option<Vec<String>> = args
+        .methods
+        .as_ref()
+        .map(|m| m.split(',').map(|s| s.trim().to_string()).collect());
+    if let Some(w) = &wanted
+        && let Some(bad) = w.iter().find(|n| !METHODS.iter().any(|m| m.name == n.as_str()))
+    {
+        let names: Vec<&str> = METHODS.iter().map(|m| m.name).collect();
+        bail!("--methods: unknown method `{bad}` (known: {})", names.join(", "));
+    }
+    let methods: Vec<&MethodEntry> = METHODS
+        .iter()
+        .filter(|m| wanted.as_ref().is_none_or(|w| w.iter().any(|n| n == m.name)))
+        .collect();
+    let root = workspace_root();
+    let scenes: Vec<PathBuf> = args
+        .scenes
+        .split(',')
+        .map(|s| s.trim())
+        .filter(|s| !s.is_empty())
+        .map(|s| {
+            let p = PathBuf::from(s);
+            if p.is_absolute() || p.exists() { p } else { root.join(p) }
+        })
+        .collect();
+    if scenes.is_empty() {
+        bail!("--scenes: no scene files given");
+    }
+    let backends = args.backend.open()?;
+    let params = serde_json::json!({
+        "scenes": scenes, "reference_spp": ref_spp, "spp": spp, "coarsen": coarsen,
+        "resolution": resolution, "seed": args.seed,
+        "methods": methods.iter().map(|m| m.name).collect::<Vec<_>>(),
+        "targets": TARGETS,
+    });
+    let mut out = Output::new("accuracy_cost", &args.common, params)?;
+    out.record("backends", backends.meta());
+
+    let mut points = Vec::new();
+    let mut refs = Vec::new();
+    for path in &scenes {
+        let mut scene = load(path, coarsen, resolution)?;
+        render_reference(&mut scene, ref_spp, args.seed)?;
+        out.timing(format!("{}/reference", scene.name), scene.reference_seconds);
+        let noise = errors(
+            &scene,
+            &scene
+                .reference
+                .iter()
+                .map(to_channel_images)
+                .collect::<Vec<_>>(),
+        )
+        .4;
+        refs.push(ReferenceRow {
+            scene: scene.name.clone(),
+            spp: ref_spp,
+            seconds: scene.reference_seconds,
+            noise,
+            channels: scene.channels.len(),
+            effects: scene.effects.names(),
+        });
+        let mut jobs = Vec::new();
+        for m in &methods {
+            for s in (m.settings)(quick, &spp) {
+                for b in backends.list(s.precision) {
+                    let gpu = matches!(b, Backend::Gpu(_));
+                    if gpu && (!m.gpu || s.precision == Precision::F64) {
+                        continue;
+                    }
+                    jobs.push((*m, s.clone(), b));
+                }
+            }
+        }
+        let bar = progress(jobs.len() as u64, &args.common, &scene.name);
+        for (m, s, b) in &jobs {
+            let job = Job {
+                scene: &scene,
+                setting: s,
+                backend: b,
+                seed: args.seed + 1000,
+            };
+            let r = (m.run)(&job)?;
+            let (error, debiased, single, multiple, noise) = errors(&scene, &r.images);
+            points.push(Point {
+                scene: scene.name.clone(),
+                method: m.name.into(),
+                setting: s.label.clone(),
+                backend: if m.gpu { b.to_string() } else { "cpu-f64".into() },
+                seconds: r.seconds,
+                error,
+                error_stderr: noise,
+                error_debiased: debiased,
+                error_single: single,
+                error_multiple: multiple,
+                detail: r.detail,
+            });
+            if let Some(p) = points.last() {
+                let line = format!(
+                    "{} {} [{}] {}: {:.3} s, error {:.4}",
+                    p.scene, p.method, p.setting, p.backend, p.seconds, p.error
+                );
+                if bar.is_hidden() {
+                    eprintln!("{line}");
+                } else {
+                    bar.println(line);
+                }
+            }
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        plot_scene(&out, &scene.name, &points)?;
+    }
+    out.csv("points.csv", &points)?;
+    out.csv("references.csv", &refs)?;
+    out.csv("fastest.csv", &fastest(&points))?;
+    out.finish()?;
+    Ok(points)
+}
+
+fn plot_scene(out: &Output, scene: &str, points: &[Point]) -> Result<()> {
+    let mine: Vec<&Point> = points.iter().filter(|p| p.scene == scene).collect();
+    let mut keys: Vec<(String, String)> = mine
+        .iter()
+        .map(|p| (p.method.clone(), p.backend.clone()))
+        .collect();
+    keys.sort();
+    keys.dedup();
+    let mut series: Vec<Series> = keys
+        .iter()
+        .enumerate()
+        .map(|(i, (m, b))| {
+            let pts = mine
+                .iter()
+                .filter(|p| &p.method == m && &p.backend == b && p.error.is_finite())
+                .map(|p| (p.seconds, p.error))
+                .collect();
+            Series::new(format!("{m} ({b})"), pts, Style::Points, i)
+        })
+        .collect();
+    series.push(Series::new("Pareto front", pareto(&mine), Style::Dashed, keys.len()));
+    if let Some(noise) = mine.first().map(|p| p.error_stderr)
+        && noise.is_finite()
+        && noise > 0.0
+    {
+        let (lo, hi) = mine.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), p| {
+            (lo.min(p.seconds), hi.max(p.seconds))
+        });
+        series.push(Series::new(
+            "reference noise",
+            vec![(lo, noise), (hi, noise)],
+            Style::Line,
+            keys.len() + 1,
+        ));
+    }
+    plot(
+        &out.path(&format!("pareto_{scene}.png")),
+        &format!("{scene}: image error vs time"),
+        &Axis::log("wall time (s)"),
+        &Axis::log("relative RMSE vs path-traced reference"),
+        &series,
+    )
+}

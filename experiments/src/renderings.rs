@@ -1,0 +1,420 @@
+//! FLD Figs 1, 6 and 7 analogs: heterogeneous volumes rendered by the path tracer, by the
+//! FLD pipeline and by the CDA pipeline side by side, over an albedo sweep and at full and
+//! reduced diffusion resolution, with error images and a table of image errors split into
+//! single and multiple scattering, and timings.
+//!
+//! For every scene and albedo α (the albedo of every voxel with σt > 0 set to α, in every
+//! colour channel), the reference is the path tracer's component images
+//! (`reference::effects::render_components`, `--spp` samples per pixel). Each grid method
+//! (`--methods`, default `cda,fld:lp`) renders at each downsampling factor (`--downsample`,
+//! default `1,4`: full and quarter resolution).
+//!
+//! **Outputs** (`results/renderings/`):
+//! * `errors.csv`: `scene,albedo,method,downsample,backend,error,error_single,error_multiple,
+//!   reference_noise,reference_noise_multiple,seconds,diffusion_seconds,iterations` — relative
+//!   RMSEs (see [`crate::images`]) of the total image and of the single- and
+//!   multiple-scattering components against the reference's;
+//! * `claim.csv`: per scene and albedo ≥ 0.5 and downsampling factor, FLD-LP's and CDA's
+//!   multiple-scattering errors and which is lower (FLD Section 6.2's claim);
+//! * `quarter.csv`: per scene, albedo and method, the diffusion-solve seconds at full and
+//!   at the coarsest resolution, their ratio, and the errors of both (FLD Fig 6);
+//! * `<scene>_a<albedo>.png`: reference | each method and factor, one exposure;
+//!   `<scene>_a<albedo>_error.png`: the signed multiple-scattering error of each (red: too
+//!   bright, blue: too dark, saturated at 25 % of the white point).
+
+use crate::accuracy_cost::{Prepared, errors, load, render_reference};
+use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress, workspace_root};
+use crate::images::{ColourMap, Tile, relative_noise, white_point, write_strip};
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use solvers::fld::FldConfig;
+use solvers::pipeline::{self, ChannelImages, DiffusionMethod, PipelineConfig};
+use solvers::{Backend, Precision};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Flags of `renderings`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(about = "Path tracing vs FLD vs CDA renderings over an albedo sweep (FLD Figs 1, 6, 7)")]
+pub struct Args {
+    /// Shared flags.
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Shared backend flag (the diffusion solve runs there; CPU runs in f32).
+    #[command(flatten)]
+    pub backend: BackendArgs,
+    /// Scene files, comma-separated.
+    #[arg(long, default_value = "scenes/nebula.toml,scenes/shell_core.toml")]
+    pub scenes: String,
+    /// Albedos of the sweep.
+    #[arg(long, default_value = "0.1,0.3,0.5,0.7,0.9,1.0")]
+    pub albedo: String,
+    /// Grid methods: cda, fld (LP) or fld:<limiter>.
+    #[arg(long, default_value = "cda,fld:lp")]
+    pub methods: String,
+    /// Diffusion downsampling factors (1 = full resolution).
+    #[arg(long, default_value = "1,4")]
+    pub downsample: String,
+    /// Samples per pixel of the reference (default 1024; 64 with --quick).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Solver tolerance.
+    #[arg(long, default_value_t = 1e-4)]
+    pub tolerance: f64,
+    /// Coarsen the scenes' media first (default 1; 2 with --quick).
+    #[arg(long)]
+    pub coarsen: Option<usize>,
+    /// Override the camera resolution `W,H` (default: the scene's; 24,24 with --quick).
+    #[arg(long)]
+    pub resolution: Option<String>,
+    /// Seed of the reference.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// One row of `errors.csv`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ErrorRow {
+    /// Scene (file stem).
+    pub scene: String,
+    /// Albedo of the sweep.
+    pub albedo: f64,
+    /// `cda`, `fld:lp`, …
+    pub method: String,
+    /// Diffusion downsampling factor.
+    pub downsample: usize,
+    /// Backend of the diffusion solve.
+    pub backend: String,
+    /// Relative RMSE of the total image.
+    pub error: f64,
+    /// … of the single-scattering component.
+    pub error_single: f64,
+    /// … of the multiple-scattering component.
+    pub error_multiple: f64,
+    /// The reference's own relative noise (total image).
+    pub reference_noise: f64,
+    /// The reference's own relative noise (multiple-scattering component).
+    pub reference_noise_multiple: f64,
+    /// Wall-clock seconds of the render.
+    pub seconds: f64,
+    /// Seconds of the diffusion solve(s).
+    pub diffusion_seconds: f64,
+    /// Solver iterations per channel.
+    pub iterations: String,
+}
+
+/// One row of `claim.csv`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ClaimRow {
+    /// Scene.
+    pub scene: String,
+    /// Albedo.
+    pub albedo: f64,
+    /// Downsampling factor.
+    pub downsample: usize,
+    /// FLD-LP's multiple-scattering error.
+    pub fld_lp_error_multiple: f64,
+    /// CDA's.
+    pub cda_error_multiple: f64,
+    /// The reference's noise in that component.
+    pub reference_noise_multiple: f64,
+    /// Whether FLD-LP's error is the lower one.
+    pub fld_lower: bool,
+}
+
+/// One row of `quarter.csv`.
+#[derive(Debug, Clone, Serialize)]
+pub struct QuarterRow {
+    /// Scene.
+    pub scene: String,
+    /// Albedo.
+    pub albedo: f64,
+    /// Method.
+    pub method: String,
+    /// The reduced factor compared with 1.
+    pub downsample: usize,
+    /// Diffusion seconds at full resolution.
+    pub full_seconds: f64,
+    /// Diffusion seconds at the reduced resolution.
+    pub reduced_seconds: f64,
+    /// reduced / full.
+    pub cost_ratio: f64,
+    /// Total-image error at full resolution.
+    pub full_error: f64,
+    /// Total-image error at the reduced resolution.
+    pub reduced_error: f64,
+    /// Multiple-scattering error at full resolution.
+    pub full_error_multiple: f64,
+    /// Multiple-scattering error at the reduced resolution.
+    pub reduced_error_multiple: f64,
+}
+
+/// Everything the experiment measured.
+#[derive(Debug)]
+pub struct Outcome {
+    /// `errors.csv`.
+    pub errors: Vec<ErrorRow>,
+    /// `claim.csv`.
+    pub claim: Vec<ClaimRow>,
+    /// `quarter.csv`.
+    pub quarter: Vec<QuarterRow>,
+}
+
+fn set_albedo(scene: &mut Prepared, albedo: f64) {
+    for ch in &mut scene.channels {
+        let m = &mut ch.medium;
+        for (a, s) in m.albedo.iter_mut().zip(&m.sigma_t) {
+            if *s > 0.0 {
+                *a = albedo;
+            }
+        }
+    }
+}
+
+/// Runs the sweep.
+pub fn run(args: &Args) -> Result<Outcome> {
+    let quick = args.common.quick;
+    let albedos: Vec<f64> = parse_list("albedo", &args.albedo)?;
+    if let Some(a) = albedos.iter().find(|a| !(0.0..=1.0).contains(*a)) {
+        bail!("--albedo: {a} is outside [0, 1]");
+    }
+    let methods: Vec<DiffusionMethod> = args
+        .methods
+        .split(',')
+        .map(|m| m.trim().parse::<DiffusionMethod>())
+        .collect::<Result<_, _>>()
+        .context("--methods")?;
+    let factors: Vec<usize> = parse_list("downsample", &args.downsample)?;
+    if factors.contains(&0) {
+        bail!("--downsample factors must be at least 1");
+    }
+    let spp = args.spp.unwrap_or(if quick { 64 } else { 1024 });
+    let coarsen = args.coarsen.unwrap_or(if quick { 2 } else { 1 });
+    let resolution = match &args.resolution {
+        Some(s) => {
+            let v: Vec<usize> = parse_list("resolution", s)?;
+            match v.as_slice() {
+                [w, h] if *w > 0 && *h > 0 => Some([*w, *h]),
+                _ => bail!("--resolution must be W,H"),
+            }
+        }
+        None if quick => Some([24, 24]),
+        None => None,
+    };
+    let root = workspace_root();
+    let scenes: Vec<PathBuf> = args
+        .scenes
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| {
+            let p = PathBuf::from(s);
+            if p.is_absolute() || p.exists() { p } else { root.join(p) }
+        })
+        .collect();
+    let backends = args.backend.open()?;
+    let params = serde_json::json!({
+        "scenes": scenes, "albedo": albedos, "methods": args.methods, "downsample": factors,
+        "spp": spp, "tolerance": args.tolerance, "coarsen": coarsen, "resolution": resolution,
+        "seed": args.seed,
+    });
+    let mut out = Output::new("renderings", &args.common, params)?;
+    out.record("backends", backends.meta());
+    let mut rows = Vec::new();
+    for path in &scenes {
+        let mut scene = load(path, coarsen, resolution)?;
+        let bar = progress(albedos.len() as u64, &args.common, &scene.name);
+        for &albedo in &albedos {
+            set_albedo(&mut scene, albedo);
+            render_reference(&mut scene, spp, args.seed)
+                .with_context(|| format!("albedo {albedo}"))?;
+            out.timing(
+                format!("{}/a{albedo}/reference", scene.name),
+                scene.reference_seconds,
+            );
+            let ref_total: Vec<&[f64]> =
+                scene.reference.iter().map(|c| c.total.mean.as_slice()).collect();
+            let ref_multi: Vec<&[f64]> =
+                scene.reference.iter().map(|c| c.multiple.mean.as_slice()).collect();
+            let se_multi: Vec<&[f64]> = scene
+                .reference
+                .iter()
+                .map(|c| c.multiple.stderr.as_slice())
+                .collect();
+            let noise_multi = relative_noise(&se_multi, &ref_multi);
+            let mut renders: Vec<(String, usize, Vec<ChannelImages>)> = Vec::new();
+            for b in backends.list(Precision::F32) {
+                for &m in &methods {
+                    for &k in &factors {
+                        let config = PipelineConfig {
+                            method: m,
+                            downsample: k,
+                            fld: FldConfig {
+                                tolerance: Some(args.tolerance),
+                                ..FldConfig::default()
+                            },
+                            ..PipelineConfig::default()
+                        };
+                        let t0 = Instant::now();
+                        let r = pipeline::render_channels(
+                            &scene.channels,
+                            &scene.selection,
+                            &config,
+                            &b,
+                        )
+                        .with_context(|| format!("{} α={albedo} {m} ds={k}", scene.name))?;
+                        let seconds = t0.elapsed().as_secs_f64();
+                        let (error, _, error_single, error_multiple, noise) =
+                            errors(&scene, &r.channels);
+                        rows.push(ErrorRow {
+                            scene: scene.name.clone(),
+                            albedo,
+                            method: m.to_string(),
+                            downsample: k,
+                            backend: b.to_string(),
+                            error,
+                            error_single,
+                            error_multiple,
+                            reference_noise: noise,
+                            reference_noise_multiple: noise_multi,
+                            seconds,
+                            diffusion_seconds: r.diffusion.iter().map(|d| d.solve_seconds).sum(),
+                            iterations: r
+                                .diffusion
+                                .iter()
+                                .map(|d| d.iterations.to_string())
+                                .collect::<Vec<_>>()
+                                .join("/"),
+                        });
+                        if matches!(b, Backend::Cpu(_)) {
+                            renders.push((format!("{m} ds={k}"), k, r.channels));
+                        }
+                    }
+                }
+            }
+            write_images(&out, &scene, albedo, &ref_total, &renders)?;
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+    }
+    let outcome = Outcome {
+        claim: claim(&rows),
+        quarter: quarter(&rows),
+        errors: rows,
+    };
+    out.csv("errors.csv", &outcome.errors)?;
+    out.csv("claim.csv", &outcome.claim)?;
+    out.csv("quarter.csv", &outcome.quarter)?;
+    out.finish()?;
+    Ok(outcome)
+}
+
+fn write_images(
+    out: &Output,
+    scene: &Prepared,
+    albedo: f64,
+    ref_total: &[&[f64]],
+    renders: &[(String, usize, Vec<ChannelImages>)],
+) -> Result<()> {
+    let Some(cam) = scene.channels.first().and_then(|c| c.camera) else {
+        return Ok(());
+    };
+    let [w, h] = cam.resolution;
+    let white = white_point(ref_total);
+    let mut tiles = vec![Tile {
+        channels: ref_total.to_vec(),
+        map: ColourMap::Radiance { white },
+    }];
+    for (_, _, im) in renders {
+        tiles.push(Tile {
+            channels: im.iter().map(|c| c.total.as_slice()).collect(),
+            map: ColourMap::Radiance { white },
+        });
+    }
+    let stem = format!("{}_a{albedo}", scene.name);
+    write_strip(&out.path(&format!("{stem}.png")), w, h, &tiles)?;
+    // Signed multiple-scattering error, channel-summed.
+    let diffs: Vec<Vec<f64>> = renders
+        .iter()
+        .map(|(_, _, im)| {
+            (0..w * h)
+                .map(|p| {
+                    im.iter()
+                        .zip(&scene.reference)
+                        .map(|(c, r)| c.multiple[p] - r.multiple.mean[p])
+                        .sum()
+                })
+                .collect()
+        })
+        .collect();
+    let tiles: Vec<Tile> = diffs
+        .iter()
+        .map(|d| Tile {
+            channels: vec![d.as_slice()],
+            map: ColourMap::Signed {
+                scale: 0.25 * white * scene.channels.len() as f64,
+            },
+        })
+        .collect();
+    if !tiles.is_empty() {
+        write_strip(&out.path(&format!("{stem}_error.png")), w, h, &tiles)?;
+    }
+    Ok(())
+}
+
+/// FLD-LP vs CDA multiple-scattering errors at albedo ≥ 0.5 (CPU rows).
+pub fn claim(rows: &[ErrorRow]) -> Vec<ClaimRow> {
+    let find = |r: &ErrorRow, m: &str| {
+        rows.iter().find(|x| {
+            x.scene == r.scene
+                && x.albedo == r.albedo
+                && x.downsample == r.downsample
+                && x.backend == r.backend
+                && x.method == m
+        })
+    };
+    rows.iter()
+        .filter(|r| r.method == "cda" && r.albedo >= 0.5 && r.backend.starts_with("cpu"))
+        .filter_map(|cda| {
+            let fld = find(cda, "fld:lp")?;
+            Some(ClaimRow {
+                scene: cda.scene.clone(),
+                albedo: cda.albedo,
+                downsample: cda.downsample,
+                fld_lp_error_multiple: fld.error_multiple,
+                cda_error_multiple: cda.error_multiple,
+                reference_noise_multiple: cda.reference_noise_multiple,
+                fld_lower: fld.error_multiple < cda.error_multiple,
+            })
+        })
+        .collect()
+}
+
+/// Reduced- vs full-resolution diffusion cost and error, per scene, albedo and method.
+pub fn quarter(rows: &[ErrorRow]) -> Vec<QuarterRow> {
+    rows.iter()
+        .filter(|r| r.downsample > 1)
+        .filter_map(|red| {
+            let full = rows.iter().find(|x| {
+                x.scene == red.scene
+                    && x.albedo == red.albedo
+                    && x.method == red.method
+                    && x.backend == red.backend
+                    && x.downsample == 1
+            })?;
+            Some(QuarterRow {
+                scene: red.scene.clone(),
+                albedo: red.albedo,
+                method: format!("{} ({})", red.method, red.backend),
+                downsample: red.downsample,
+                full_seconds: full.diffusion_seconds,
+                reduced_seconds: red.diffusion_seconds,
+                cost_ratio: red.diffusion_seconds / full.diffusion_seconds,
+                full_error: full.error,
+                reduced_error: red.error,
+                full_error_multiple: full.error_multiple,
+                reduced_error_multiple: red.error_multiple,
+            })
+        })
+        .collect()
+}
