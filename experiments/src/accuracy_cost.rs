@@ -197,6 +197,12 @@ pub static METHODS: &[MethodEntry] = &[
         settings: grid_settings,
         run: |job| run_grid(job, DiffusionMethod::Fld(FluxLimiter::LevermorePomraning)),
     },
+    MethodEntry {
+        name: "lbm",
+        gpu: true,
+        settings: grid_settings,
+        run: |job| run_grid(job, DiffusionMethod::Lbm),
+    },
 ];
 
 fn pt_settings(_quick: bool, spp: &[u32]) -> Vec<Setting> {
@@ -211,36 +217,35 @@ fn pt_settings(_quick: bool, spp: &[u32]) -> Vec<Setting> {
         .collect()
 }
 
-/// Downsampling × tolerance × precision. Full: ds ∈ {1, 2, 4}, tol ∈ {1e-2, 1e-3, 1e-4},
-/// f32 and f64; quick: ds ∈ {2, 4}, tol 1e-3, f32.
+/// Downsampling × tolerance × precision. Full: quarter resolution (ds 4) at tolerances
+/// 1e-2, 1e-3, 1e-4 in f32 and 1e-4 in f64; half resolution (ds 2) at 1e-2, 1e-3 in f32 and
+/// 1e-4 in f64; full resolution at 1e-3 in f32 (a full-resolution solve costs about as much
+/// as all the others together). Quick: ds ∈ {2, 4}, 1e-3, f32.
 fn grid_settings(quick: bool, _spp: &[u32]) -> Vec<Setting> {
-    let (ds, tols, precs): (&[usize], &[f64], &[Precision]) = if quick {
-        (&[2, 4], &[1e-3], &[Precision::F32])
+    use Precision::{F32, F64};
+    let list: &[(usize, f64, Precision)] = if quick {
+        &[(4, 1e-3, F32), (2, 1e-3, F32)]
     } else {
-        (
-            &[1, 2, 4],
-            &[1e-2, 1e-3, 1e-4],
-            &[Precision::F32, Precision::F64],
-        )
+        &[
+            (4, 1e-2, F32),
+            (4, 1e-3, F32),
+            (4, 1e-4, F32),
+            (4, 1e-4, F64),
+            (2, 1e-2, F32),
+            (2, 1e-3, F32),
+            (2, 1e-4, F64),
+            (1, 1e-3, F32),
+        ]
     };
-    let mut v = Vec::new();
-    for &d in ds {
-        for &t in tols {
-            for &p in precs {
-                v.push(Setting {
-                    label: format!(
-                        "ds={d} tol={t:e} {}",
-                        if p == Precision::F32 { "f32" } else { "f64" }
-                    ),
-                    downsample: d,
-                    tolerance: t,
-                    precision: p,
-                    spp: 0,
-                });
-            }
-        }
-    }
-    v
+    list.iter()
+        .map(|&(d, t, p)| Setting {
+            label: format!("ds={d} tol={t:e} {}", if p == F32 { "f32" } else { "f64" }),
+            downsample: d,
+            tolerance: t,
+            precision: p,
+            spp: 0,
+        })
+        .collect()
 }
 
 fn run_pt(job: &Job<'_>) -> Result<Run> {
@@ -273,19 +278,42 @@ fn to_channel_images(c: &PtComponents) -> ChannelImages {
     }
 }
 
-fn run_grid(job: &Job<'_>, method: DiffusionMethod) -> Result<Run> {
-    let config = PipelineConfig {
+/// Iteration cap of the grid solves in the experiments: CDA in vacuum (D = 1/(3σ_ε)) can
+/// need far more, and then reports `max_iterations` in the point's detail.
+pub const MAX_ITERATIONS: usize = 5000;
+
+/// Stratified rays per pixel and axis of the grid methods' raymarch, so that their pixels
+/// average over the pixel's area like the path tracer's (box filter).
+pub const PIXEL_SAMPLES: usize = 3;
+
+/// The pipeline settings of a grid method in the experiments: the pipeline's defaults
+/// (ω = 1.8, exact shadow rays) with this method, downsampling and tolerance, an iteration
+/// cap of [`MAX_ITERATIONS`] and [`PIXEL_SAMPLES`]² rays per pixel.
+pub fn grid_config(method: DiffusionMethod, downsample: usize, tolerance: f64) -> PipelineConfig {
+    let base = PipelineConfig::default();
+    PipelineConfig {
         method,
-        downsample: job.setting.downsample,
+        downsample,
         fld: FldConfig {
-            tolerance: Some(job.setting.tolerance),
-            ..FldConfig::default()
+            tolerance: Some(tolerance),
+            max_iterations: MAX_ITERATIONS,
+            ..base.fld.clone()
         },
-        ..PipelineConfig::default()
-    };
+        pixel_samples: PIXEL_SAMPLES,
+        ..base
+    }
+}
+
+fn run_grid(job: &Job<'_>, method: DiffusionMethod) -> Result<Run> {
+    let config = grid_config(method, job.setting.downsample, job.setting.tolerance);
     let t0 = Instant::now();
-    let r = pipeline::render_channels(&job.scene.channels, &job.scene.selection, &config, job.backend)
-        .with_context(|| format!("rendering with {method} ({})", job.setting.label))?;
+    let r = pipeline::render_channels(
+        &job.scene.channels,
+        &job.scene.selection,
+        &config,
+        job.backend,
+    )
+    .with_context(|| format!("rendering with {method} ({})", job.setting.label))?;
     let seconds = t0.elapsed().as_secs_f64();
     let iterations: Vec<String> = r
         .diffusion
@@ -493,7 +521,10 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
         None if quick => vec![16, 32],
         None => vec![16, 64, 256, 1024],
     };
-    if let Some(s) = spp.iter().find(|&&s| s < reference::pathtracer::MIN_BATCHES) {
+    if let Some(s) = spp
+        .iter()
+        .find(|&&s| s < reference::pathtracer::MIN_BATCHES)
+    {
         bail!(
             "--spp: {s} is below {} (the batches of a standard error)",
             reference::pathtracer::MIN_BATCHES
@@ -513,14 +544,23 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
         .as_ref()
         .map(|m| m.split(',').map(|s| s.trim().to_string()).collect());
     if let Some(w) = &wanted
-        && let Some(bad) = w.iter().find(|n| !METHODS.iter().any(|m| m.name == n.as_str()))
+        && let Some(bad) = w
+            .iter()
+            .find(|n| !METHODS.iter().any(|m| m.name == n.as_str()))
     {
         let names: Vec<&str> = METHODS.iter().map(|m| m.name).collect();
-        bail!("--methods: unknown method `{bad}` (known: {})", names.join(", "));
+        bail!(
+            "--methods: unknown method `{bad}` (known: {})",
+            names.join(", ")
+        );
     }
     let methods: Vec<&MethodEntry> = METHODS
         .iter()
-        .filter(|m| wanted.as_ref().is_none_or(|w| w.iter().any(|n| n == m.name)))
+        .filter(|m| {
+            wanted
+                .as_ref()
+                .is_none_or(|w| w.iter().any(|n| n == m.name))
+        })
         .collect();
     let root = workspace_root();
     let scenes: Vec<PathBuf> = args
@@ -530,7 +570,11 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
         .filter(|s| !s.is_empty())
         .map(|s| {
             let p = PathBuf::from(s);
-            if p.is_absolute() || p.exists() { p } else { root.join(p) }
+            if p.is_absolute() || p.exists() {
+                p
+            } else {
+                root.join(p)
+            }
         })
         .collect();
     if scenes.is_empty() {
@@ -595,7 +639,11 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
                 scene: scene.name.clone(),
                 method: m.name.into(),
                 setting: s.label.clone(),
-                backend: if m.gpu { b.to_string() } else { "cpu-f64".into() },
+                backend: if m.gpu {
+                    b.to_string()
+                } else {
+                    "cpu-f64".into()
+                },
                 seconds: r.seconds,
                 error,
                 error_stderr: noise,
@@ -647,7 +695,12 @@ fn plot_scene(out: &Output, scene: &str, points: &[Point]) -> Result<()> {
             Series::new(format!("{m} ({b})"), pts, Style::Points, i)
         })
         .collect();
-    series.push(Series::new("Pareto front", pareto(&mine), Style::Dashed, keys.len()));
+    series.push(Series::new(
+        "Pareto front",
+        pareto(&mine),
+        Style::Dashed,
+        keys.len(),
+    ));
     if let Some(noise) = mine.first().map(|p| p.error_stderr)
         && noise.is_finite()
         && noise > 0.0

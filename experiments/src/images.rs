@@ -134,7 +134,10 @@ pub fn write_strip(path: &Path, w: usize, h: usize, tiles: &[Tile<'_>]) -> Resul
     let mut px = Vec::with_capacity(3);
     for (t, tile) in tiles.iter().enumerate() {
         if tile.channels.iter().any(|c| c.len() != w * h) {
-            return Err(anyhow!("writing {}: tile {t} is not {w}x{h}", path.display()));
+            return Err(anyhow!(
+                "writing {}: tile {t} is not {w}x{h}",
+                path.display()
+            ));
         }
         let x0 = t * (w + gap);
         for y in 0..h {

@@ -10,9 +10,9 @@
 pub mod accuracy_cost;
 pub mod common;
 pub mod convergence;
+pub mod images;
 pub mod lbm_convergence;
 pub mod lbm_diffusion_limit;
-pub mod images;
 pub mod mitsuba_compare;
 pub mod plot;
 pub mod point_source;

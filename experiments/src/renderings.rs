@@ -22,13 +22,12 @@
 //!   `<scene>_a<albedo>_error.png`: the signed multiple-scattering error of each (red: too
 //!   bright, blue: too dark, saturated at 25 % of the white point).
 
-use crate::accuracy_cost::{Prepared, errors, load, render_reference};
+use crate::accuracy_cost::{Prepared, errors, grid_config, load, render_reference};
 use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress, workspace_root};
 use crate::images::{ColourMap, Tile, relative_noise, white_point, write_strip};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
-use solvers::fld::FldConfig;
-use solvers::pipeline::{self, ChannelImages, DiffusionMethod, PipelineConfig};
+use solvers::pipeline::{self, ChannelImages, DiffusionMethod};
 use solvers::{Backend, Precision};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -46,19 +45,23 @@ pub struct Args {
     /// Scene files, comma-separated.
     #[arg(long, default_value = "scenes/nebula.toml,scenes/shell_core.toml")]
     pub scenes: String,
-    /// Albedos of the sweep.
-    #[arg(long, default_value = "0.1,0.3,0.5,0.7,0.9,1.0")]
-    pub albedo: String,
+    /// Albedos of the sweep (default 0.1,0.3,0.5,0.7,0.9,1.0; 0.3,0.9 with --quick).
+    #[arg(long)]
+    pub albedo: Option<String>,
     /// Grid methods: cda, fld (LP) or fld:<limiter>.
     #[arg(long, default_value = "cda,fld:lp")]
     pub methods: String,
     /// Diffusion downsampling factors (1 = full resolution).
     #[arg(long, default_value = "1,4")]
     pub downsample: String,
+    /// Albedos at which factor 1 (full resolution) also runs — it costs more than the
+    /// rest of the sweep together (default 0.9).
+    #[arg(long)]
+    pub full_at: Option<String>,
     /// Samples per pixel of the reference (default 1024; 64 with --quick).
     #[arg(long)]
     pub spp: Option<u32>,
-    /// Solver tolerance.
+    /// Solver tolerance (R̄/j̄; LBM: × 10⁻² on the relative density change).
     #[arg(long, default_value_t = 1e-4)]
     pub tolerance: f64,
     /// Coarsen the scenes' media first (default 1; 2 with --quick).
@@ -174,7 +177,11 @@ fn set_albedo(scene: &mut Prepared, albedo: f64) {
 /// Runs the sweep.
 pub fn run(args: &Args) -> Result<Outcome> {
     let quick = args.common.quick;
-    let albedos: Vec<f64> = parse_list("albedo", &args.albedo)?;
+    let albedos: Vec<f64> = match &args.albedo {
+        Some(s) => parse_list("albedo", s)?,
+        None if quick => vec![0.3, 0.9],
+        None => vec![0.1, 0.3, 0.5, 0.7, 0.9, 1.0],
+    };
     if let Some(a) = albedos.iter().find(|a| !(0.0..=1.0).contains(*a)) {
         bail!("--albedo: {a} is outside [0, 1]");
     }
@@ -189,6 +196,10 @@ pub fn run(args: &Args) -> Result<Outcome> {
         bail!("--downsample factors must be at least 1");
     }
     let spp = args.spp.unwrap_or(if quick { 64 } else { 1024 });
+    let full_at: Vec<f64> = match &args.full_at {
+        Some(s) => parse_list("full-at", s)?,
+        None => vec![0.9],
+    };
     let coarsen = args.coarsen.unwrap_or(if quick { 2 } else { 1 });
     let resolution = match &args.resolution {
         Some(s) => {
@@ -209,13 +220,18 @@ pub fn run(args: &Args) -> Result<Outcome> {
         .filter(|s| !s.is_empty())
         .map(|s| {
             let p = PathBuf::from(s);
-            if p.is_absolute() || p.exists() { p } else { root.join(p) }
+            if p.is_absolute() || p.exists() {
+                p
+            } else {
+                root.join(p)
+            }
         })
         .collect();
     let backends = args.backend.open()?;
     let params = serde_json::json!({
         "scenes": scenes, "albedo": albedos, "methods": args.methods, "downsample": factors,
         "spp": spp, "tolerance": args.tolerance, "coarsen": coarsen, "resolution": resolution,
+        "full_at": full_at,
         "seed": args.seed,
     });
     let mut out = Output::new("renderings", &args.common, params)?;
@@ -232,10 +248,16 @@ pub fn run(args: &Args) -> Result<Outcome> {
                 format!("{}/a{albedo}/reference", scene.name),
                 scene.reference_seconds,
             );
-            let ref_total: Vec<&[f64]> =
-                scene.reference.iter().map(|c| c.total.mean.as_slice()).collect();
-            let ref_multi: Vec<&[f64]> =
-                scene.reference.iter().map(|c| c.multiple.mean.as_slice()).collect();
+            let ref_total: Vec<&[f64]> = scene
+                .reference
+                .iter()
+                .map(|c| c.total.mean.as_slice())
+                .collect();
+            let ref_multi: Vec<&[f64]> = scene
+                .reference
+                .iter()
+                .map(|c| c.multiple.mean.as_slice())
+                .collect();
             let se_multi: Vec<&[f64]> = scene
                 .reference
                 .iter()
@@ -246,15 +268,10 @@ pub fn run(args: &Args) -> Result<Outcome> {
             for b in backends.list(Precision::F32) {
                 for &m in &methods {
                     for &k in &factors {
-                        let config = PipelineConfig {
-                            method: m,
-                            downsample: k,
-                            fld: FldConfig {
-                                tolerance: Some(args.tolerance),
-                                ..FldConfig::default()
-                            },
-                            ..PipelineConfig::default()
-                        };
+                        if k == 1 && !full_at.contains(&albedo) {
+                            continue;
+                        }
+                        let config = grid_config(m, k, args.tolerance);
                         let t0 = Instant::now();
                         let r = pipeline::render_channels(
                             &scene.channels,

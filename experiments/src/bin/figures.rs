@@ -5,8 +5,9 @@ use anyhow::{Context, Result};
 use clap::Parser;
 use experiments::common::{CommonArgs, git_revision, workspace_root};
 use experiments::{
-    convergence, lbm_convergence, lbm_diffusion_limit, mitsuba_compare, point_source,
-    point_source_analytic, pt_point_source, pt_render, pt_slab, transport_references,
+    accuracy_cost, convergence, lbm_convergence, lbm_diffusion_limit, mitsuba_compare,
+    point_source, point_source_analytic, pt_point_source, pt_render, pt_slab, renderings,
+    transport_references,
 };
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -153,6 +154,28 @@ fn main() -> Result<()> {
             pt_render::run(&a)
         },
     )?;
+    let rend = timed(
+        &mut times,
+        "renderings",
+        "[R 1/2] FLD Figs 1, 6, 7: path tracing vs FLD vs CDA, albedo sweep".into(),
+        || {
+            let mut a = renderings::Args::parse_from(["renderings"]);
+            a.common = common("renderings");
+            a.backend.backend = args.backend.clone();
+            renderings::run(&a)
+        },
+    )?;
+    let atlas = timed(
+        &mut times,
+        "accuracy_cost",
+        "[R 2/2] accuracy vs time atlas".into(),
+        || {
+            let mut a = accuracy_cost::Args::parse_from(["accuracy_cost"]);
+            a.common = common("accuracy_cost");
+            a.backend.backend = args.backend.clone();
+            accuracy_cost::run(&a)
+        },
+    )?;
     // Mitsuba is optional for the figures: without its venv the comparison is skipped with a
     // note (the tests require it in CI).
     let mut mitsuba_note = String::new();
@@ -194,6 +217,7 @@ fn main() -> Result<()> {
     let mut readme = report(&args, &fig5, &limiters, &conv, &times, total);
     readme.push_str(&reference_sections(&root, &mitsuba_note));
     readme.push_str(&lbm_section(&lbm_conv, &lbm_diff));
+    readme.push_str(&pipeline_sections(&rend, &atlas));
     let path = root.join("README.md");
     std::fs::write(&path, readme).with_context(|| format!("writing {}", path.display()))?;
     eprintln!("done in {total:.0} s; see {}", path.display());
@@ -351,6 +375,137 @@ fn lbm_section(
              MLUPS and effective bytes/s (19 f32/f64 values read + 19 written per site) against the STREAM triad and \
              copy of the same machine (CPU) or the device copy probe (GPU; `llvmpipe` is Mesa's CPU Vulkan driver).\n\n```\n{csv}```"
         );
+    }
+    s
+}
+
+/// The renderings tables (FLD's claim, quarter resolution) and the atlas's summary.
+fn pipeline_sections(rend: &renderings::Outcome, atlas: &[accuracy_cost::Point]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\n## Renderings: path tracing vs FLD vs CDA (`renderings/`, FLD Figs 1, 6, 7)\n\n\
+         Each scene's albedo set to α in every voxel and channel; reference: the path tracer's single-, multiple- \
+         and emission components. Errors are relative RMSEs over all pixels and channels (`errors.csv` has every \
+         run; images `<scene>_a<α>.png`: reference | CDA and FLD-LP at each factor, one exposure; \
+         `_error.png`: signed multiple-scattering error).\n\n\
+         ### FLD's claim (Section 6.2): FLD-LP's multiple-scattering error below CDA's at albedo ≥ 0.5\n"
+    );
+    let _ = writeln!(
+        s,
+        "| scene | α | downsample | FLD-LP | CDA | reference noise | FLD lower |\n|---|---|---|---|---|---|---|"
+    );
+    for c in &rend.claim {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.3} | {:.3} | {:.3} | {} |",
+            c.scene,
+            c.albedo,
+            c.downsample,
+            c.fld_lp_error_multiple,
+            c.cda_error_multiple,
+            c.reference_noise_multiple,
+            if c.fld_lower { "yes" } else { "**no**" }
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n### Reduced-resolution diffusion (FLD Fig 6): cost and error against full resolution\n\n\
+         | scene | α | method | factor | full solve (s) | reduced solve (s) | cost ratio | error full → reduced | multiple-scattering error full → reduced |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    for q in &rend.quarter {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.2} | {:.3} | 1/{:.0} | {:.3} → {:.3} | {:.3} → {:.3} |",
+            q.scene,
+            q.albedo,
+            q.method,
+            q.downsample,
+            q.full_seconds,
+            q.reduced_seconds,
+            1.0 / q.cost_ratio,
+            q.full_error,
+            q.reduced_error,
+            q.full_error_multiple,
+            q.reduced_error_multiple
+        );
+    }
+    let mut scenes: Vec<&str> = rend.errors.iter().map(|e| e.scene.as_str()).collect();
+    scenes.dedup();
+    for sc in scenes {
+        let _ = writeln!(
+            s,
+            "\n![{sc}](renderings/{sc}_a0.9.png)\n![{sc} error](renderings/{sc}_a0.9_error.png)"
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n## Accuracy vs time atlas (`accuracy_cost/`)\n\n\
+         Every method setting on every dataset against a path-traced reference (`points.csv`: \
+         `scene,method,setting,backend,seconds,error,error_stderr`, …; `error_stderr` is the reference's own \
+         relative noise, the floor below which errors cannot be resolved). Methods: the path tracer at increasing \
+         spp, and the grid pipeline with CDA, FLD-LP and lattice-Boltzmann (LB) as the multiple-scattering pass \
+         at diffusion downsampling 4, 2, 1, tolerances and precisions (`setting`).\n\n\
+         ### Fastest to 5 %, 2 % and 1 % relative RMSE\n\n\
+         | scene | target | fastest | setting | backend | seconds | error |\n|---|---|---|---|---|---|---|"
+    );
+    for f in accuracy_cost::fastest(atlas) {
+        let what = if f.method.is_empty() {
+            "none reached it".to_string()
+        } else {
+            f.method.clone()
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {:.0} % | {}{} | {} | {} | {} | {} |",
+            f.scene,
+            100.0 * f.target,
+            what,
+            if f.resolvable {
+                ""
+            } else {
+                " (below the reference noise)"
+            },
+            f.setting,
+            f.backend,
+            if f.seconds.is_finite() {
+                format!("{:.2}", f.seconds)
+            } else {
+                "—".into()
+            },
+            if f.error.is_finite() {
+                format!("{:.4}", f.error)
+            } else {
+                "—".into()
+            },
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n### Best error per method and scene (and its time)\n\n| scene | method | best error | setting | seconds | reference noise |\n|---|---|---|---|---|---|"
+    );
+    let mut keys: Vec<(&str, &str)> = atlas
+        .iter()
+        .map(|p| (p.scene.as_str(), p.method.as_str()))
+        .collect();
+    keys.dedup();
+    for (sc, m) in keys {
+        if let Some(p) = atlas
+            .iter()
+            .filter(|p| p.scene == sc && p.method == m)
+            .min_by(|a, b| a.error.total_cmp(&b.error))
+        {
+            let _ = writeln!(
+                s,
+                "| {sc} | {m} | {:.4} | {} | {:.2} | {:.4} |",
+                p.error, p.setting, p.seconds, p.error_stderr
+            );
+        }
+    }
+    let mut scenes: Vec<&str> = atlas.iter().map(|p| p.scene.as_str()).collect();
+    scenes.dedup();
+    for sc in scenes {
+        let _ = writeln!(s, "\n![{sc}](accuracy_cost/pareto_{sc}.png)");
     }
     s
 }
