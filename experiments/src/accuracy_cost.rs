@@ -504,12 +504,36 @@ pub fn pareto(points: &[&Point]) -> Vec<(f64, f64)> {
     front
 }
 
-fn parse_resolution(s: &str) -> Result<[usize; 2]> {
+/// Parses `W,H` (both > 0).
+pub fn parse_resolution(s: &str) -> Result<[usize; 2]> {
     let v: Vec<usize> = parse_list("resolution", s)?;
     match v.as_slice() {
         [w, h] if *w > 0 && *h > 0 => Ok([*w, *h]),
         _ => bail!("--resolution must be W,H with W, H > 0, got `{s}`"),
     }
+}
+
+/// Scene files from a comma-separated list; relative paths that do not exist from the
+/// current directory are taken from the workspace root.
+pub fn scene_paths(list: &str) -> Result<Vec<PathBuf>> {
+    let root = workspace_root();
+    let v: Vec<PathBuf> = list
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| {
+            let p = PathBuf::from(s);
+            if p.is_absolute() || p.exists() {
+                p
+            } else {
+                root.join(p)
+            }
+        })
+        .collect();
+    if v.is_empty() {
+        bail!("--scenes: no scene files given");
+    }
+    Ok(v)
 }
 
 /// Runs the atlas; returns its points.
@@ -562,24 +586,7 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
                 .is_none_or(|w| w.iter().any(|n| n == m.name))
         })
         .collect();
-    let root = workspace_root();
-    let scenes: Vec<PathBuf> = args
-        .scenes
-        .split(',')
-        .map(|s| s.trim())
-        .filter(|s| !s.is_empty())
-        .map(|s| {
-            let p = PathBuf::from(s);
-            if p.is_absolute() || p.exists() {
-                p
-            } else {
-                root.join(p)
-            }
-        })
-        .collect();
-    if scenes.is_empty() {
-        bail!("--scenes: no scene files given");
-    }
+    let scenes = scene_paths(&args.scenes)?;
     let backends = args.backend.open()?;
     let params = serde_json::json!({
         "scenes": scenes, "reference_spp": ref_spp, "spp": spp, "coarsen": coarsen,

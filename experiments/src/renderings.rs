@@ -22,14 +22,15 @@
 //!   `<scene>_a<albedo>_error.png`: the signed multiple-scattering error of each (red: too
 //!   bright, blue: too dark, saturated at 25 % of the white point).
 
-use crate::accuracy_cost::{Prepared, errors, grid_config, load, render_reference};
-use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress, workspace_root};
+use crate::accuracy_cost::{
+    Prepared, errors, grid_config, load, parse_resolution, render_reference, scene_paths,
+};
+use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress};
 use crate::images::{ColourMap, Tile, relative_noise, white_point, write_strip};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use solvers::pipeline::{self, ChannelImages, DiffusionMethod};
 use solvers::{Backend, Precision};
-use std::path::PathBuf;
 use std::time::Instant;
 
 /// Flags of `renderings`.
@@ -202,31 +203,11 @@ pub fn run(args: &Args) -> Result<Outcome> {
     };
     let coarsen = args.coarsen.unwrap_or(if quick { 2 } else { 1 });
     let resolution = match &args.resolution {
-        Some(s) => {
-            let v: Vec<usize> = parse_list("resolution", s)?;
-            match v.as_slice() {
-                [w, h] if *w > 0 && *h > 0 => Some([*w, *h]),
-                _ => bail!("--resolution must be W,H"),
-            }
-        }
+        Some(s) => Some(parse_resolution(s)?),
         None if quick => Some([24, 24]),
         None => None,
     };
-    let root = workspace_root();
-    let scenes: Vec<PathBuf> = args
-        .scenes
-        .split(',')
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-        .map(|s| {
-            let p = PathBuf::from(s);
-            if p.is_absolute() || p.exists() {
-                p
-            } else {
-                root.join(p)
-            }
-        })
-        .collect();
+    let scenes = scene_paths(&args.scenes)?;
     let backends = args.backend.open()?;
     let params = serde_json::json!({
         "scenes": scenes, "albedo": albedos, "methods": args.methods, "downsample": factors,

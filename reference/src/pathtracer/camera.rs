@@ -1,6 +1,8 @@
 //! Camera images: radiance per pixel with batch-means error bars.
 //!
-//! **Camera model** (`solvers::scene::Camera`): forward f = normalize(target − eye),
+//! **Camera model** (`solvers::scene::Camera`, rays from
+//! `solvers::pipeline::geometry::CameraRays`, shared with the grid pipeline so that images
+//! line up pixel for pixel): forward f = normalize(target − eye),
 //! right r = normalize(f × up), image up u = r × f. Pixel (x, y) with x to the right and y
 //! downwards, (0, 0) top-left, stored row by row. A sample at pixel position
 //! (x + ξ₁, y + ξ₂) (box filter: uniform over the pixel's area) maps to image-plane
@@ -35,13 +37,14 @@
 use super::TraceOptions;
 use super::contributions::Contributions;
 use super::estimators::{batch_sizes, check_batches};
-use super::math::{Vec3, at, cross, normalize, sub};
+use super::math::{Vec3, at};
 use super::phase::sample_dir;
 use super::rng::Rng;
 use super::world::{Event, World};
 use crate::ReferenceError;
 use rayon::prelude::*;
-use solvers::scene::{Camera, Projection, Scene};
+use solvers::pipeline::geometry::CameraRays;
+use solvers::scene::Scene;
 use std::f64::consts::PI;
 
 /// Settings of an image render.
@@ -68,55 +71,6 @@ pub struct Image {
     pub mean: Vec<f64>,
     /// Standard error of each pixel's mean.
     pub stderr: Vec<f64>,
-}
-
-/// Primary rays of a camera.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct CameraRays {
-    eye: Vec3,
-    f: Vec3,
-    r: Vec3,
-    u: Vec3,
-    projection: Projection,
-    w: f64,
-    h: f64,
-}
-
-impl CameraRays {
-    pub(crate) fn new(c: &Camera) -> Self {
-        let f = normalize(sub(c.target, c.eye));
-        let r = normalize(cross(f, c.up));
-        let u = cross(r, f);
-        Self {
-            eye: c.eye,
-            f,
-            r,
-            u,
-            projection: c.projection,
-            w: c.resolution[0] as f64,
-            h: c.resolution[1] as f64,
-        }
-    }
-
-    /// The ray through image position (px, py) in pixel units (0..W, 0..H, y down).
-    #[inline]
-    pub(crate) fn ray(&self, px: f64, py: f64) -> (Vec3, Vec3) {
-        let sx = 2.0 * px / self.w - 1.0;
-        let sy = 1.0 - 2.0 * py / self.h;
-        match self.projection {
-            Projection::Perspective { fov_y_degrees } => {
-                let t = (0.5 * fov_y_degrees.to_radians()).tan();
-                let (a, b) = (sx * t * self.w / self.h, sy * t);
-                let d = [0, 1, 2].map(|i| self.f[i] + a * self.r[i] + b * self.u[i]);
-                (self.eye, normalize(d))
-            }
-            Projection::Orthographic { width } => {
-                let (a, b) = (sx * 0.5 * width, sy * 0.5 * width * self.h / self.w);
-                let o = [0, 1, 2].map(|i| self.eye[i] + a * self.r[i] + b * self.u[i]);
-                (o, self.f)
-            }
-        }
-    }
 }
 
 /// Renders `scene` through `scene.camera` with the project's conventions (nearest voxel
@@ -259,7 +213,7 @@ pub(crate) fn radiance(
 
 /// Used by tests: the direction of the centre ray of pixel (x, y).
 #[cfg(test)]
-pub(crate) fn centre_ray(camera: &Camera, x: usize, y: usize) -> (Vec3, Vec3) {
+pub(crate) fn centre_ray(camera: &solvers::scene::Camera, x: usize, y: usize) -> (Vec3, Vec3) {
     CameraRays::new(camera).ray(x as f64 + 0.5, y as f64 + 0.5)
 }
 
@@ -267,6 +221,7 @@ pub(crate) fn centre_ray(camera: &Camera, x: usize, y: usize) -> (Vec3, Vec3) {
 mod tests {
     use super::super::math::{dot, norm};
     use super::*;
+    use solvers::scene::{Camera, Projection};
 
     /// Pixel (0, 0) is top-left; the centre pixel of an odd perspective image looks at the
     /// target; horizontal and vertical field of view follow fov_y and the aspect ratio.
