@@ -446,7 +446,7 @@ fn pipeline_sections(rend: &renderings::Outcome, atlas: &[accuracy_cost::Point])
          relative noise, the floor below which errors cannot be resolved). Methods: the path tracer at increasing \
          spp, and the grid pipeline with CDA, FLD-LP and lattice-Boltzmann (LB) as the multiple-scattering pass \
          at diffusion downsampling 4, 2, 1, tolerances and precisions (`setting`).\n\n\
-         ### Fastest to 5 %, 2 % and 1 % relative RMSE\n\n\
+         ### Fastest to 5 %, 2 % and 1 % relative RMSE (debiased: the reference's variance removed)\n\n\
          | scene | target | fastest | setting | backend | seconds | error |\n|---|---|---|---|---|---|---|"
     );
     for f in accuracy_cost::fastest(atlas) {
