@@ -430,36 +430,13 @@ impl<'a> GpuFld<'a> {
         timer: &mut PassTimer,
         read_state: bool,
     ) -> Result<Vec<u8>, SolverError> {
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("fld iterations"),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("fld iterations"),
-                timestamp_writes: timer.writes(),
-            });
-            self.record_iterations(&mut pass, n);
-        }
-        timer.resolve(&mut encoder);
         let state_bytes = 16 + 4 * u64::from(self.check_every);
-        let mut reads = Vec::new();
-        if read_state {
-            reads.push((&self.state, state_bytes));
-        }
-        if let Some(t) = timer.readback() {
-            reads.push((t, 16));
-        }
-        let mut out = self.ctx.submit_and_read(encoder, &reads)?;
-        let stamps = if timer.readback().is_some() {
-            out.pop()
-        } else {
-            None
-        };
-        timer.record(stamps.as_deref());
-        Ok(out.pop().unwrap_or_default())
+        Ok(timer.run_pass(
+            self.ctx,
+            "fld iterations",
+            |pass| self.record_iterations(pass, n),
+            read_state.then_some((&self.state, state_bytes)),
+        )?)
     }
 
     /// Bytes one iteration must move at least (as [`CpuFld::bytes_per_iteration`] in f32:

@@ -524,6 +524,41 @@ impl PassTimer {
     pub fn seconds(&self) -> f64 {
         self.seconds
     }
+
+    /// Records one timed compute pass (`record` fills it) into a new encoder, submits it,
+    /// waits, adds the pass time, and returns the first `read.1` bytes of `read.0` (empty
+    /// without `read`). The submit path every kernel's solve loop shares.
+    pub fn run_pass(
+        &mut self,
+        ctx: &GpuContext,
+        label: &str,
+        record: impl FnOnce(&mut wgpu::ComputePass<'_>),
+        read: Option<(&wgpu::Buffer, u64)>,
+    ) -> Result<Vec<u8>, GpuError> {
+        let mut encoder = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: self.writes(),
+            });
+            record(&mut pass);
+        }
+        self.resolve(&mut encoder);
+        let mut reads: Vec<(&wgpu::Buffer, u64)> = read.into_iter().collect();
+        if let Some(t) = self.readback() {
+            reads.push((t, 16));
+        }
+        let mut out = ctx.submit_and_read(encoder, &reads)?;
+        let stamps = if self.readback().is_some() {
+            out.pop()
+        } else {
+            None
+        };
+        self.record(stamps.as_deref());
+        Ok(out.pop().unwrap_or_default())
+    }
 }
 
 /// Creates a storage buffer initialised with `data` (at least 4 bytes, for empty data).

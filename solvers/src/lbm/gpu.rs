@@ -321,40 +321,21 @@ impl<'a> GpuLbm<'a> {
         timer: &mut PassTimer,
         checkpoint: bool,
     ) -> Result<Vec<u8>, SolverError> {
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("lbm steps"),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("lbm steps"),
-                timestamp_writes: timer.writes(),
-            });
-            if checkpoint {
-                self.record_steps(&mut pass, n - 1);
-                self.record_checkpoint(&mut pass);
-            } else {
-                self.record_steps(&mut pass, n);
-            }
-        }
-        timer.resolve(&mut encoder);
-        let mut reads = Vec::new();
-        if checkpoint {
-            reads.push((&self.totals, 16));
-        }
-        if let Some(t) = timer.readback() {
-            reads.push((t, 16));
-        }
-        let mut out = self.ctx.submit_and_read(encoder, &reads)?;
-        let stamps = if timer.readback().is_some() {
-            out.pop()
-        } else {
-            None
-        };
-        timer.record(stamps.as_deref());
-        Ok(out.pop().unwrap_or_default())
+        // wgpu handles are reference-counted: a clone lets the pass borrow `self` mutably.
+        let (ctx, totals) = (self.ctx, self.totals.clone());
+        Ok(timer.run_pass(
+            ctx,
+            "lbm steps",
+            |pass| {
+                if checkpoint {
+                    self.record_steps(pass, n - 1);
+                    self.record_checkpoint(pass);
+                } else {
+                    self.record_steps(pass, n);
+                }
+            },
+            checkpoint.then_some((&totals, 16)),
+        )?)
     }
 
     /// The current state (post-collision densities, z-slab layout), read back.
