@@ -122,8 +122,23 @@ pub struct Prepared {
     pub reference: Vec<PtComponents>,
     /// Seconds the reference took.
     pub reference_seconds: f64,
-    /// Its samples per pixel.
-    pub reference_spp: u32,
+}
+
+impl Prepared {
+    /// The reference's own relative noise, √Σse²/√Σr² of the total image.
+    pub fn noise(&self) -> f64 {
+        let r: Vec<&[f64]> = self
+            .reference
+            .iter()
+            .map(|c| c.total.mean.as_slice())
+            .collect();
+        let se: Vec<&[f64]> = self
+            .reference
+            .iter()
+            .map(|c| c.total.stderr.as_slice())
+            .collect();
+        relative_noise(&se, &r)
+    }
 }
 
 /// A method setting.
@@ -360,7 +375,6 @@ pub fn load(
         effects,
         reference: Vec::new(),
         reference_seconds: 0.0,
-        reference_spp: 0,
     })
 }
 
@@ -381,13 +395,11 @@ pub fn render_reference(scene: &mut Prepared, spp: u32, seed: u64) -> Result<()>
         .collect::<Result<Vec<_>, _>>()
         .with_context(|| format!("path-traced reference of {}", scene.name))?;
     scene.reference_seconds = t0.elapsed().as_secs_f64();
-    scene.reference_spp = spp;
     Ok(())
 }
 
-/// The errors of a run against the prepared reference: (total, debiased, single, multiple,
-/// reference noise).
-pub fn errors(scene: &Prepared, images: &[ChannelImages]) -> (f64, f64, f64, f64, f64) {
+/// The errors of a run against the prepared reference: (total, debiased, single, multiple).
+pub fn errors(scene: &Prepared, images: &[ChannelImages]) -> (f64, f64, f64, f64) {
     let pick = |f: fn(&ChannelImages) -> &Vec<f64>| -> Vec<&[f64]> {
         images.iter().map(|c| f(c).as_slice()).collect()
     };
@@ -402,7 +414,6 @@ pub fn errors(scene: &Prepared, images: &[ChannelImages]) -> (f64, f64, f64, f64
         relative_rmse_debiased(&total, &rt, &se),
         relative_rmse(&pick(|c| &c.single), &refs(|c| &c.single.mean)),
         relative_rmse(&pick(|c| &c.multiple), &refs(|c| &c.multiple.mean)),
-        relative_noise(&se, &rt),
     )
 }
 
@@ -607,15 +618,7 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
         let mut scene = load(path, coarsen, resolution)?;
         render_reference(&mut scene, ref_spp, args.seed)?;
         out.timing(format!("{}/reference", scene.name), scene.reference_seconds);
-        let noise = errors(
-            &scene,
-            &scene
-                .reference
-                .iter()
-                .map(to_channel_images)
-                .collect::<Vec<_>>(),
-        )
-        .4;
+        let noise = scene.noise();
         refs.push(ReferenceRow {
             scene: scene.name.clone(),
             spp: ref_spp,
@@ -645,7 +648,7 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
                 seed: args.seed + 1000,
             };
             let r = (m.run)(&job)?;
-            let (error, debiased, single, multiple, noise) = errors(&scene, &r.images);
+            let (error, debiased, single, multiple) = errors(&scene, &r.images);
             points.push(Point {
                 scene: scene.name.clone(),
                 method: m.name.into(),

@@ -245,6 +245,7 @@ pub fn run(args: &Args) -> Result<Outcome> {
                 .map(|c| c.multiple.stderr.as_slice())
                 .collect();
             let noise_multi = relative_noise(&se_multi, &ref_multi);
+            let noise = scene.noise();
             let mut renders: Vec<(String, usize, Vec<ChannelImages>)> = Vec::new();
             for b in backends.list(Precision::F32) {
                 for &m in &methods {
@@ -262,8 +263,7 @@ pub fn run(args: &Args) -> Result<Outcome> {
                         )
                         .with_context(|| format!("{} α={albedo} {m} ds={k}", scene.name))?;
                         let seconds = t0.elapsed().as_secs_f64();
-                        let (error, _, error_single, error_multiple, noise) =
-                            errors(&scene, &r.channels);
+                        let (error, _, error_single, error_multiple) = errors(&scene, &r.channels);
                         rows.push(ErrorRow {
                             scene: scene.name.clone(),
                             albedo,

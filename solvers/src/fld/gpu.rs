@@ -278,19 +278,13 @@ impl<'a> GpuFld<'a> {
             });
             let limiter_id = f64::from(limiter_id(config.limiter));
             let constants = [("LIMITER", limiter_id)];
-            let pipelines = ["boundary_d", "sweep", "reduce"].map(|entry| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        zero_initialize_workgroup_memory: false,
-                    },
-                    cache: None,
-                })
-            });
+            let pipelines = crate::gpu::compute_pipelines(
+                device,
+                &pipeline_layout,
+                &module,
+                ["boundary_d", "sweep", "reduce"],
+                &constants,
+            );
             let binds = [0usize, 1].map(|c| {
                 let entries: Vec<wgpu::BindGroupEntry> = std::iter::once(&uniforms[c])
                     .chain(bufs.iter())

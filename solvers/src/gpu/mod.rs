@@ -561,6 +561,31 @@ impl PassTimer {
     }
 }
 
+/// One compute pipeline per entry point of `module`, all with `layout` and the same WGSL
+/// override `constants` (workgroup memory is not zero-initialised: the kernels write before
+/// they read).
+pub(crate) fn compute_pipelines<const N: usize>(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    entries: [&str; N],
+    constants: &[(&str, f64)],
+) -> [wgpu::ComputePipeline; N] {
+    entries.map(|entry| {
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(layout),
+            module,
+            entry_point: Some(entry),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants,
+                zero_initialize_workgroup_memory: false,
+            },
+            cache: None,
+        })
+    })
+}
+
 /// Creates a storage buffer initialised with `data` (at least 4 bytes, for empty data).
 pub(crate) fn storage_buffer(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
     use wgpu::util::DeviceExt;

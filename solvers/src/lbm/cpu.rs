@@ -52,16 +52,26 @@ pub(super) struct Setup<T> {
     pub(super) setup_seconds: f64,
 }
 
+/// Checks the medium, the injection and the configuration (both kernels call this before
+/// anything else, the GPU one before its device-limit checks).
+pub(super) fn validate(
+    medium: &Medium<f64>,
+    injection: &Injection,
+    config: &LbmConfig,
+) -> Result<(), SolverError> {
+    medium.validate()?;
+    config.validate()?;
+    injection.validate()
+}
+
 impl<T: Real> Setup<T> {
+    /// The host-side setup of validated inputs (see [`validate`]).
     pub(super) fn new(
         medium: &Medium<f64>,
         injection: &Injection,
         config: &LbmConfig,
     ) -> Result<Self, SolverError> {
         let t0 = Instant::now();
-        medium.validate()?;
-        config.validate()?;
-        injection.validate()?;
         let grid = medium.grid;
         let n = grid.len();
         let (mut ss, mut sa) = (Vec::with_capacity(n), Vec::with_capacity(n));
@@ -385,6 +395,7 @@ impl<T: Real> CpuLbm<T> {
         injection: &Injection,
         config: &LbmConfig,
     ) -> Result<Self, SolverError> {
+        validate(medium, injection, config)?;
         let setup = Setup::new(medium, injection, config)?;
         let len = Q * setup.grid.len();
         Ok(Self {

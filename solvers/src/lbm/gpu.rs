@@ -77,9 +77,7 @@ impl<'a> GpuLbm<'a> {
         config: &LbmConfig,
     ) -> Result<Self, SolverError> {
         let t0 = Instant::now();
-        medium.validate()?;
-        config.validate()?;
-        injection.validate()?;
+        super::cpu::validate(medium, injection, config)?;
         let grid = medium.grid;
         let [nx, ny, nz] = grid.n;
         let sites = grid.len() as u64;
@@ -187,19 +185,13 @@ impl<'a> GpuLbm<'a> {
                 immediate_size: 0,
             });
             let constants = [("ISO", if iso { 1.0 } else { 0.0 })];
-            let pipelines = ["step", "step_reduce", "reduce"].map(|entry| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        zero_initialize_workgroup_memory: false,
-                    },
-                    cache: None,
-                })
-            });
+            let pipelines = crate::gpu::compute_pipelines(
+                device,
+                &pipeline_layout,
+                &module,
+                ["step", "step_reduce", "reduce"],
+                &constants,
+            );
             let binds = [0usize, 1].map(|from| {
                 let bufs = [
                     &uniform,
