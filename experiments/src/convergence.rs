@@ -359,7 +359,7 @@ fn solve(
         omega: job.omega,
         n: job.n,
         sigma_eps,
-        iterations: sol.iterations,
+        iterations: sol.steps,
         seconds: sol.seconds,
         timer: sol.timer.to_string(),
         converged: sol.converged(),
@@ -367,5 +367,5 @@ fn solve(
         precision: backend.precision().name(),
         backend: backend.kind(),
     };
-    Ok((row, sol.residuals))
+    Ok((row, sol.trace.residuals))
 }

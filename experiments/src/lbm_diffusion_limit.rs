@@ -179,7 +179,7 @@ pub fn run(args: &Args) -> Result<Vec<CaseRow>> {
                 + (k as f64 - c as f64).powi(2))
             .sqrt();
             if r >= args.r_min && r <= r_max {
-                let (x, y) = (1.0 / r, sol.rho[idx]);
+                let (x, y) = (1.0 / r, sol.trace.rho[idx]);
                 sx += x;
                 sy += y;
                 sxx += x * x;
@@ -206,7 +206,7 @@ pub fn run(args: &Args) -> Result<Vec<CaseRow>> {
             sigma_a: sa,
             n,
             steps: sol.steps,
-            steady: sol.steady(),
+            steady: sol.converged(),
             d_eq19: d19,
             d_fit,
             ratio: d_fit / d19,
@@ -228,7 +228,7 @@ pub fn run(args: &Args) -> Result<Vec<CaseRow>> {
             .sqrt();
             let s = r.round() as usize;
             if s >= 1 && s < n / 2 {
-                shells[s].0 += sol.rho[idx];
+                shells[s].0 += sol.trace.rho[idx];
                 shells[s].1 += 1;
             }
         }

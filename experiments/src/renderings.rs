@@ -29,7 +29,8 @@ use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress};
 use crate::images::{ColourMap, Tile, relative_noise, white_point, write_strip};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
-use solvers::pipeline::{self, ChannelImages, DiffusionMethod};
+use solvers::method::MethodRef;
+use solvers::pipeline::{self, ChannelImages};
 use solvers::{Backend, Precision};
 use std::time::Instant;
 
@@ -49,8 +50,8 @@ pub struct Args {
     /// Albedos of the sweep (default 0.1,0.3,0.5,0.7,0.9,1.0; 0.3,0.9 with --quick).
     #[arg(long)]
     pub albedo: Option<String>,
-    /// Grid methods: cda, fld (LP) or fld:<limiter>.
-    #[arg(long, default_value = "cda,fld:lp")]
+    /// Grid methods, comma-separated: any registered method (see `render --help`).
+    #[arg(long, default_value = "cda,fld:lp", long_help = format!("Grid methods, comma-separated; {}", solvers::method::names()))]
     pub methods: String,
     /// Diffusion downsampling factors (1 = full resolution).
     #[arg(long, default_value = "1,4")]
@@ -62,7 +63,8 @@ pub struct Args {
     /// Samples per pixel of the reference (default 1024; 64 with --quick).
     #[arg(long)]
     pub spp: Option<u32>,
-    /// Solver tolerance (R̄/j̄; LBM: × 10⁻² on the relative density change).
+    /// Solver tolerance (`solvers::method::Tolerance::rel`: R̄/j̄ for CDA/FLD; each method
+    /// documents its mapping).
     #[arg(long, default_value_t = 1e-4)]
     pub tolerance: f64,
     /// Coarsen the scenes' media first (default 1; 2 with --quick).
@@ -186,10 +188,10 @@ pub fn run(args: &Args) -> Result<Outcome> {
     if let Some(a) = albedos.iter().find(|a| !(0.0..=1.0).contains(*a)) {
         bail!("--albedo: {a} is outside [0, 1]");
     }
-    let methods: Vec<DiffusionMethod> = args
+    let methods: Vec<MethodRef> = args
         .methods
         .split(',')
-        .map(|m| m.trim().parse::<DiffusionMethod>())
+        .map(|m| m.trim().parse::<MethodRef>())
         .collect::<Result<_, _>>()
         .context("--methods")?;
     let factors: Vec<usize> = parse_list("downsample", &args.downsample)?;
@@ -248,7 +250,7 @@ pub fn run(args: &Args) -> Result<Outcome> {
             let noise = scene.noise();
             let mut renders: Vec<(String, usize, Vec<ChannelImages>)> = Vec::new();
             for b in backends.list(Precision::F32) {
-                for &m in &methods {
+                for m in &methods {
                     for &k in &factors {
                         if k == 1 && !full_at.contains(&albedo) {
                             continue;
@@ -280,7 +282,7 @@ pub fn run(args: &Args) -> Result<Outcome> {
                             iterations: r
                                 .diffusion
                                 .iter()
-                                .map(|d| d.iterations.to_string())
+                                .map(|d| d.steps.to_string())
                                 .collect::<Vec<_>>()
                                 .join("/"),
                         });

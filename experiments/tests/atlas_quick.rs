@@ -45,7 +45,7 @@ fn accuracy_cost_quick_atlas() {
     let scenes = ["nebula", "emissive_cloud", "shell_core", "plume"];
     for s in scenes {
         assert!(dir.join(format!("pareto_{s}.png")).exists());
-        for m in accuracy_cost::METHODS {
+        for m in accuracy_cost::methods() {
             assert!(
                 points.iter().any(|p| p.scene == s && p.method == m.name),
                 "{s}: no point of {}",
