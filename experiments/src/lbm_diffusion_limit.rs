@@ -282,7 +282,7 @@ pub fn run(args: &Args) -> Result<Vec<CaseRow>> {
         &series,
     )?;
     let mut prof = Vec::new();
-    for (k, &(st, sa)) in cases.iter().enumerate().filter(|(_, c)| c.1 == sas[0]) {
+    for (k, &(st, sa)) in cases.iter().filter(|c| c.1 == sas[0]).enumerate() {
         let p: Vec<(f64, f64)> = profiles
             .iter()
             .filter(|p| p.sigma_t == st && p.sigma_a == sa)

@@ -26,7 +26,9 @@ use crate::accuracy_cost::{
     Prepared, errors, grid_config, load, parse_resolution, render_reference, scene_paths,
 };
 use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress};
-use crate::images::{ColourMap, Tile, relative_noise, white_point, write_strip};
+use crate::images::{
+    ColourMap, Tile, relative_noise, white_point, write_strip, write_strip_with_bar,
+};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use solvers::method::MethodRef;
@@ -287,7 +289,9 @@ pub fn run(args: &Args) -> Result<Outcome> {
                                 .join("/"),
                         });
                         if matches!(b, Backend::Cpu(_)) {
-                            renders.push((format!("{m} ds={k}"), k, r.channels));
+                            let g = r.diffusion.first().map_or([0; 3], |d| d.grid);
+                            let label = format!("{m} ds={k}, {}×{}×{} grid", g[0], g[1], g[2]);
+                            renders.push((label, k, r.channels));
                         }
                     }
                 }
@@ -321,15 +325,19 @@ fn write_images(
     };
     let [w, h] = cam.resolution;
     let white = white_point(ref_total);
-    let mut tiles = vec![Tile {
-        channels: ref_total.to_vec(),
-        map: ColourMap::Radiance { white },
-    }];
-    for (_, _, im) in renders {
-        tiles.push(Tile {
-            channels: im.iter().map(|c| c.total.as_slice()).collect(),
-            map: ColourMap::Radiance { white },
-        });
+    let common = format!("α = {albedo}, {w}×{h} px");
+    let mut tiles = vec![
+        Tile::new(ref_total.to_vec(), ColourMap::Radiance { white })
+            .labelled(format!("path tracer (reference)\n{common}")),
+    ];
+    for (label, _, im) in renders {
+        tiles.push(
+            Tile::new(
+                im.iter().map(|c| c.total.as_slice()).collect(),
+                ColourMap::Radiance { white },
+            )
+            .labelled(format!("{label}\n{common}")),
+        );
     }
     let stem = format!("{}_a{albedo}", scene.name);
     write_strip(&out.path(&format!("{stem}.png")), w, h, &tiles)?;
@@ -349,15 +357,16 @@ fn write_images(
         .collect();
     let tiles: Vec<Tile> = diffs
         .iter()
-        .map(|d| Tile {
-            channels: vec![d.as_slice()],
-            map: ColourMap::Signed {
-                scale: 0.25 * white * scene.channels.len() as f64,
-            },
+        .zip(renders)
+        .map(|(d, (label, _, _))| {
+            let scale = 0.25 * white * scene.channels.len() as f64;
+            Tile::new(vec![d.as_slice()], ColourMap::Signed { scale })
+                .labelled(format!("{label}\n{common}"))
         })
         .collect();
     if !tiles.is_empty() {
-        write_strip(&out.path(&format!("{stem}_error.png")), w, h, &tiles)?;
+        let bar = "multiple-scattering radiance, method − path tracer (scene units, channel sum)";
+        write_strip_with_bar(&out.path(&format!("{stem}_error.png")), w, h, &tiles, bar)?;
     }
     Ok(())
 }
