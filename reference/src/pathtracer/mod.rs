@@ -15,6 +15,7 @@
 //! | [`fluence`](mod@fluence) | per-voxel track-length fluence of a scene, collided and uncollided: [`fluence()`] |
 //! | [`infinite`] | point source in an unbounded medium: shell tallies of 4πr²φ |
 //! | [`slab`] | plane-parallel slab: R, T_d, T_dir, A |
+//! | [`periodic`] | laterally periodic voxel slab under a collimated beam: R, T, A per column |
 //! | [`tracking`] | majorant grid, delta tracking, ratio tracking |
 //! | [`volume`] | nearest / trilinear lookups, DDA, exact line integrals |
 //! | [`phase`] | isotropic and Henyey–Greenstein phase functions |
@@ -31,6 +32,7 @@ pub mod estimators;
 pub mod fluence;
 pub mod infinite;
 pub(crate) mod math;
+pub mod periodic;
 pub mod phase;
 pub mod rng;
 pub mod slab;
@@ -43,6 +45,7 @@ pub use contributions::Contributions;
 pub use estimators::{Estimate, MIN_BATCHES};
 pub use fluence::{Field, Fluence, PathSettings, fluence, fluence_with};
 pub use infinite::{InfiniteMedium, Shell};
+pub use periodic::{Beam, ColumnFluxes, PeriodicSlab, PeriodicTally};
 pub use slab::{SlabMedium, SlabTally};
 pub use volume::Interpolation;
 
