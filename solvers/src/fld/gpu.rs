@@ -99,36 +99,13 @@ pub(crate) const SPEC: KernelSpec = KernelSpec {
     constants: &["LIMITER"],
     uniforms: &[(
         "P",
-        struct_layout!(GpuParams {
-            nx,
-            ny,
-            nz,
-            h,
-            plen,
-            color,
-            lo,
-            hi_x,
-            hi_y,
-            hi_z,
-            boundary_count,
-            boundary_row,
-            partials_per_color,
-            chunk,
-            _pad0,
-            _pad1,
-            omega,
-            one_minus_omega,
-            inv_2dl,
-            inv_dl2,
-            floor,
-            theta,
-            one_minus_theta,
-            larsen_n,
-            tolerance,
-            inv_residual_count,
-            _pad2,
-            _pad3,
-        }),
+        struct_layout!(
+            GpuParams;
+            nx, ny, nz, h, plen, color, lo, hi_x, hi_y, hi_z, boundary_count, boundary_row,
+            partials_per_color, chunk, _pad0, _pad1, omega, one_minus_omega, inv_2dl, inv_dl2,
+            floor, theta, one_minus_theta, larsen_n, tolerance, inv_residual_count, _pad2,
+            _pad3
+        ),
     )],
 };
 
@@ -217,13 +194,8 @@ impl<'a> GpuFld<'a> {
             Vec::new()
         };
         let bcount = boundary_list.len() as u32;
-        let max_groups = ctx.limits().max_compute_workgroups_per_dimension;
         let bgroups = bcount.div_ceil(WG_BOUNDARY).max(1);
-        let boundary_groups = if bgroups <= max_groups {
-            [bgroups, 1]
-        } else {
-            [max_groups, bgroups.div_ceil(max_groups)]
-        };
+        let boundary_groups = ctx.split_workgroups("the FLD boundary-layer update", bgroups)?;
         let check_every = 32u32;
         let margin = host.residual_margin();
         let (lo, hi) = (
@@ -445,17 +417,9 @@ impl<'a> GpuFld<'a> {
         if self.trivial {
             return Ok(vec![0.0; g.len()]);
         }
-        let encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("phi readback"),
-            });
         let plen = g.n[2] * g.n[1] * self.h;
-        let out = self
-            .ctx
-            .submit_and_read(encoder, &[(&self.phi, 2 * plen as u64 * 4)])?;
-        let packed: &[f32] = bytemuck::cast_slice(&out[0]);
+        let bytes = self.ctx.read_buffer(&self.phi, 2 * plen as u64 * 4)?;
+        let packed: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
         let scale = self.j_ref;
         let mut phi = Vec::with_capacity(g.len());
         for k in 0..g.n[2] {

@@ -26,15 +26,7 @@ pub(crate) const SPEC: KernelSpec = KernelSpec {
     ],
     entries: &["copy"],
     constants: &[],
-    uniforms: &[(
-        "P",
-        struct_layout!(CopyParams {
-            len,
-            row,
-            _pad0,
-            _pad1
-        }),
-    )],
+    uniforms: &[("P", struct_layout!(CopyParams; len, row, _pad0, _pad1))],
 };
 
 /// Result of [`copy_gbs`].
@@ -66,14 +58,7 @@ pub fn copy_gbs(
         limit_name: "u32 element index",
         adapter: ctx.info().name.clone(),
     })?;
-    let groups = len32.div_ceil(256);
-    let max = ctx.limits().max_compute_workgroups_per_dimension;
-    let (gx, gy) = if groups <= max {
-        (groups, 1)
-    } else {
-        (max, groups.div_ceil(max))
-    };
-    ctx.check_workgroups("bandwidth probe", gy)?;
+    let [gx, gy] = ctx.split_workgroups("bandwidth probe", len32.div_ceil(256))?;
     let (src, dst, params) = ctx.allocating("bandwidth probe buffers", 2 * bytes, |d| {
         let buffer = |label| {
             d.create_buffer(&wgpu::BufferDescriptor {

@@ -67,11 +67,11 @@ pub fn specs() -> &'static [&'static KernelSpec] {
     ]
 }
 
-/// The layout of a `#[repr(C)]` struct: `struct_layout!(GpuParams { nx, ny, … })`. Every
+/// The layout of a `#[repr(C)]` struct: `struct_layout!(GpuParams; nx, ny, …)`. Every
 /// field must be listed (an exhaustive pattern checks it at compile time); the contract test
 /// compares the order and offsets with the WGSL struct.
 macro_rules! struct_layout {
-    ($ty:ident { $($field:ident),* $(,)? }) => {{
+    ($ty:ident; $($field:ident),* $(,)?) => {{
         #[allow(dead_code)]
         fn every_field_is_listed(v: $ty) {
             let $ty { $($field: _),* } = v;

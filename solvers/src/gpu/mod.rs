@@ -344,6 +344,20 @@ impl GpuContext {
         Ok(())
     }
 
+    /// Spreads `groups` workgroups over x and y of a dispatch: `[groups, 1]` when it fits the
+    /// per-dimension limit, else `[limit, ⌈groups/limit⌉]` (the kernel folds y back into its
+    /// index), failing with a typed error if even y exceeds the limit.
+    pub fn split_workgroups(&self, what: &str, groups: u32) -> Result<[u32; 2], GpuError> {
+        let max = self.limits().max_compute_workgroups_per_dimension;
+        let split = if groups <= max {
+            [groups, 1]
+        } else {
+            [max, groups.div_ceil(max)]
+        };
+        self.check_workgroups(what, split[1])?;
+        Ok(split)
+    }
+
     /// Runs `create` inside out-of-memory and validation error scopes, turning a captured
     /// error into [`GpuError::OutOfMemory`] (with `needed` bytes) or [`GpuError::Internal`].
     pub fn allocating<R>(
@@ -391,6 +405,17 @@ impl GpuContext {
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| GpuError::DeviceLost(e.to_string()))?;
         self.check_lost()
+    }
+
+    /// Reads the first `bytes` bytes of `buffer` back (after all submitted work).
+    pub fn read_buffer(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>, GpuError> {
+        let encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("readback"),
+            });
+        let mut out = self.submit_and_read(encoder, &[(buffer, bytes)])?;
+        Ok(out.pop().unwrap_or_default())
     }
 
     /// Submits `encoder`, then copies `sources` (buffer, byte length) into one mappable

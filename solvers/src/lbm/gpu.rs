@@ -63,16 +63,7 @@ pub(crate) const SPEC: KernelSpec = KernelSpec {
     constants: &["ISO"],
     uniforms: &[(
         "P",
-        struct_layout!(GpuParams {
-            nx,
-            ny,
-            nz,
-            sites,
-            row,
-            reemit,
-            has_src,
-            groups
-        }),
+        struct_layout!(GpuParams; nx, ny, nz, sites, row, reemit, has_src, groups),
     )],
 };
 
@@ -136,13 +127,7 @@ impl<'a> GpuLbm<'a> {
                 limit_name: "u32 workgroup count",
                 adapter: ctx.info().name.clone(),
             })?;
-        let max = ctx.limits().max_compute_workgroups_per_dimension;
-        let dispatch = if groups <= max {
-            [groups, 1]
-        } else {
-            [max, groups.div_ceil(max)]
-        };
-        ctx.check_workgroups("the LBM step", dispatch[1])?;
+        let dispatch = ctx.split_workgroups("the LBM step", groups)?;
         let groups = dispatch[0] * dispatch[1];
         let setup = Setup::<f32>::new(medium, injection, config)?;
         let params = GpuParams {
@@ -278,17 +263,9 @@ impl<'a> GpuLbm<'a> {
 
     /// The current state (post-collision densities, z-slab layout), read back.
     pub fn state(&self) -> Result<Vec<f32>, SolverError> {
-        let encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("lbm readback"),
-            });
         let bytes = (Q * self.setup.grid.len() * 4) as u64;
-        let out = self
-            .ctx
-            .submit_and_read(encoder, &[(&self.states[self.parity], bytes)])?;
-        Ok(bytemuck::cast_slice(&out[0]).to_vec())
+        let out = self.ctx.read_buffer(&self.states[self.parity], bytes)?;
+        Ok(bytemuck::pod_collect_to_vec(&out))
     }
 
     /// Steps to the steady state (checked every `check_every` steps) or the cap, calling
@@ -360,7 +337,7 @@ impl Checkpointed for GpuLbm<'_> {
         bytes: &[u8],
         observer: &mut dyn FnMut(usize, f64),
     ) -> Option<Status> {
-        let t: &[f32] = bytemuck::cast_slice(bytes);
+        let t: Vec<f32> = bytemuck::pod_collect_to_vec(bytes);
         let rec = StepRecord {
             step: self.steps,
             total_density: f64::from(t[0]),
