@@ -10,6 +10,7 @@
 pub mod accuracy_cost;
 pub mod common;
 pub mod convergence;
+pub mod i3rc_step_cloud;
 pub mod images;
 pub mod lbm_convergence;
 pub mod lbm_diffusion_limit;
