@@ -24,9 +24,11 @@
 //! 2 %, 1 %: the fastest point whose debiased error reaches it), `references.csv` and
 //! `meta.json`.
 
-use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress, workspace_root};
+use crate::common::{BackendArgs, CommonArgs, Ctx, parse_list, progress, workspace_root};
+use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::images::{relative_noise, relative_rmse, relative_rmse_debiased};
 use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use reference::effects::{PtComponents, render_components};
 use reference::pathtracer::{Contributions, RenderSettings};
@@ -553,6 +555,10 @@ pub fn scene_paths(list: &str) -> Result<Vec<PathBuf>> {
 
 /// Runs the atlas; returns its points.
 pub fn run(args: &Args) -> Result<Vec<Point>> {
+    crate::experiment::run::<AccuracyCost>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     let quick = args.common.quick;
     let ref_spp = args.reference_spp.unwrap_or(if quick { 256 } else { 4096 });
     let spp: Vec<u32> = match &args.spp {
@@ -609,7 +615,8 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
         "methods": methods.iter().map(|m| m.name).collect::<Vec<_>>(),
         "targets": TARGETS,
     });
-    let mut out = Output::new("accuracy_cost", &args.common, params)?;
+    ctx.start(params)?;
+    let out = ctx;
     out.record("backends", backends.meta());
 
     let mut points = Vec::new();
@@ -680,16 +687,15 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
             bar.inc(1);
         }
         bar.finish_and_clear();
-        plot_scene(&out, &scene.name, &points)?;
+        plot_scene(out, &scene.name, &points)?;
     }
     out.csv("points.csv", &points)?;
     out.csv("references.csv", &refs)?;
     out.csv("fastest.csv", &fastest(&points))?;
-    out.finish()?;
     Ok(points)
 }
 
-fn plot_scene(out: &Output, scene: &str, points: &[Point]) -> Result<()> {
+fn plot_scene(out: &Ctx, scene: &str, points: &[Point]) -> Result<()> {
     let mine: Vec<&Point> = points.iter().filter(|p| p.scene == scene).collect();
     let mut keys: Vec<(String, String)> = mine
         .iter()
@@ -736,4 +742,170 @@ fn plot_scene(out: &Output, scene: &str, points: &[Point]) -> Result<()> {
         &Axis::log("relative RMSE vs path-traced reference"),
         &series,
     )
+}
+
+/// The accuracy vs time atlas in the registry.
+#[derive(Debug)]
+pub struct AccuracyCost;
+
+impl Experiment for AccuracyCost {
+    const NAME: &'static str = "accuracy_cost";
+    const TITLE: &'static str = "Accuracy vs time atlas";
+    const BACKEND: BackendSupport = BackendSupport::Flag;
+    type Args = Args;
+    type Summary = Vec<Point>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(args: &Args) -> Vec<Promise> {
+        let mut p = vec![
+            Promise::csv(
+                "points.csv",
+                &[
+                    "scene",
+                    "method",
+                    "setting",
+                    "backend",
+                    "seconds",
+                    "error",
+                    "error_stderr",
+                    "error_debiased",
+                    "error_single",
+                    "error_multiple",
+                    "detail",
+                ],
+            ),
+            Promise::csv(
+                "references.csv",
+                &["scene", "spp", "seconds", "noise", "channels", "effects"],
+            ),
+            Promise::csv(
+                "fastest.csv",
+                &[
+                    "scene",
+                    "target",
+                    "method",
+                    "setting",
+                    "backend",
+                    "seconds",
+                    "error",
+                    "resolvable",
+                ],
+            ),
+        ];
+        // Plots are named after the scene, which the registered datasets name after their file.
+        for path in scene_paths(&args.scenes).unwrap_or_default() {
+            if let Some(stem) = path.file_stem() {
+                p.push(Promise::file(format!(
+                    "pareto_{}.png",
+                    stem.to_string_lossy()
+                )));
+            }
+        }
+        p
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let fastest = s.csv("fastest.csv")?;
+        fastest.require(&[
+            "scene",
+            "target",
+            "method",
+            "setting",
+            "backend",
+            "seconds",
+            "error",
+            "resolvable",
+        ])?;
+        let points = s.csv("points.csv")?;
+        points.require(&[
+            "scene",
+            "method",
+            "setting",
+            "seconds",
+            "error",
+            "error_stderr",
+        ])?;
+        let mut out = String::from(
+            "Every method setting on every dataset against a path-traced reference. `error_stderr` in `points.csv` \
+             is the reference's own relative noise, the floor below which errors cannot be resolved. Methods: the \
+             path tracer at increasing spp, and the grid pipeline with each registered multiple-scattering method \
+             at diffusion downsampling 4, 2, 1, tolerances and precisions (`setting`).\n\n\
+             ### Fastest to 5 %, 2 % and 1 % relative RMSE (debiased: the reference's variance removed)\n\n",
+        );
+        let rows = fastest.rows().map(|r| {
+            let what = if r.get("method").is_empty() {
+                "none reached it"
+            } else {
+                r.get("method")
+            };
+            let floor = if r.flag("resolvable") {
+                ""
+            } else {
+                " (below the reference noise)"
+            };
+            vec![
+                r.get("scene").to_string(),
+                format!("{:.0} %", 100.0 * r.num("target")),
+                format!("{what}{floor}"),
+                r.get("setting").to_string(),
+                r.get("backend").to_string(),
+                r.fixed("seconds", 2),
+                r.fixed("error", 4),
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "scene", "target", "fastest", "setting", "backend", "time (s)", "error",
+            ],
+            rows,
+        ));
+        out.push_str("\n### Best error per method and scene (and its time)\n\n");
+        let mut rows = Vec::new();
+        for sc in points.distinct("scene") {
+            for m in points.distinct("method") {
+                if let Some(p) = points
+                    .rows()
+                    .filter(|p| p.get("scene") == sc && p.get("method") == m)
+                    .min_by(|a, b| a.num("error").total_cmp(&b.num("error")))
+                {
+                    rows.push(vec![
+                        sc.clone(),
+                        m.clone(),
+                        p.fixed("error", 4),
+                        p.get("setting").to_string(),
+                        p.fixed("seconds", 2),
+                        p.fixed("error_stderr", 4),
+                    ]);
+                }
+            }
+        }
+        out.push_str(&table(
+            &[
+                "scene",
+                "method",
+                "best error",
+                "setting",
+                "time (s)",
+                "reference noise",
+            ],
+            rows,
+        ));
+        out.push('\n');
+        out.push_str(
+            &s.pngs(
+                points
+                    .distinct("scene")
+                    .iter()
+                    .map(|sc| format!("pareto_{sc}.png")),
+            ),
+        );
+        Ok(out)
+    }
 }

@@ -4,27 +4,14 @@
 // Test helpers unwrap: a failed setup should fail the test loudly.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
 use clap::Parser;
+use common::assert_columns;
 use experiments::{convergence, point_source};
-use std::path::Path;
-
-fn header(path: &Path) -> Vec<String> {
-    experiments::common::csv_header(path).unwrap()
-}
-
-fn assert_columns(path: &Path, cols: &[&str]) {
-    let h = header(path);
-    for c in cols {
-        assert!(
-            h.iter().any(|x| x == c),
-            "{} lacks column `{c}` (has {h:?})",
-            path.display()
-        );
-    }
-}
 
 #[test]
-fn point_source_quick_writes_its_interface_and_fld_beats_cda_near_source() {
+fn point_source_quick_fld_beats_cda_near_source() {
     let dir = std::env::temp_dir().join(format!("scatterbench-ps-{}", std::process::id()));
     let args = point_source::Args::parse_from([
         "point_source",
@@ -38,31 +25,6 @@ fn point_source_quick_writes_its_interface_and_fld_beats_cda_near_source() {
         dir.to_str().unwrap_or("."),
     ]);
     let runs = point_source::run(&args).unwrap();
-    assert_columns(
-        &dir.join("profiles.csv"),
-        &[
-            "method",
-            "limiter",
-            "boundary",
-            "albedo",
-            "n",
-            "tau_extent",
-            "tau",
-            "phi_norm",
-        ],
-    );
-    assert_columns(
-        &dir.join("analytic.csv"),
-        &["albedo", "tau", "grosjean", "cda", "transport_limit"],
-    );
-    for f in [
-        "meta.json",
-        "fig5a_cda_analytic_boundary.png",
-        "fig5b_cda_zero_boundary.png",
-        "fig5c_fld_lp_zero_boundary.png",
-    ] {
-        assert!(dir.join(f).is_file(), "missing {f}");
-    }
     for a in [0.5, 0.9] {
         let err = |lim: &str| {
             runs.iter()
@@ -82,7 +44,7 @@ fn point_source_quick_writes_its_interface_and_fld_beats_cda_near_source() {
 }
 
 #[test]
-fn convergence_quick_writes_its_interface() {
+fn convergence_quick_converges_and_iterations_grow_with_resolution() {
     let dir = std::env::temp_dir().join(format!("scatterbench-cv-{}", std::process::id()));
     let args = convergence::Args::parse_from([
         "convergence",
@@ -96,22 +58,6 @@ fn convergence_quick_writes_its_interface() {
         dir.to_str().unwrap_or("."),
     ]);
     let rows = convergence::run(&args).unwrap();
-    assert_columns(
-        &dir.join("residuals.csv"),
-        &["case", "omega", "n", "sigma_eps", "iteration", "residual"],
-    );
-    assert_columns(
-        &dir.join("iterations.csv"),
-        &[
-            "case",
-            "omega",
-            "n",
-            "sigma_eps",
-            "iterations",
-            "seconds",
-            "converged",
-        ],
-    );
     // Our default θ = 0.5 converges at both SOR factors; iterations grow with resolution.
     assert!(rows.iter().filter(|r| r.case == "sor").all(|r| r.converged));
     let res: Vec<usize> = rows
@@ -130,14 +76,21 @@ fn convergence_quick_writes_its_interface() {
 fn bad_flags_are_errors_not_panics() {
     let a = point_source::Args::parse_from(["point_source", "--n", "32", "--no-progress"]);
     assert!(point_source::run(&a).is_err());
-    let a = point_source::Args::parse_from([
-        "point_source",
-        "--quick",
-        "--limiter",
-        "nonsense",
-        "--no-progress",
-    ]);
-    assert!(point_source::run(&a).is_err());
+    // Malformed lists and unknown names are rejected when the flags are parsed; an empty
+    // list is an error, not an empty CSV.
+    for (flag, value) in [
+        ("--limiter", "nonsense"),
+        ("--albedo", ""),
+        ("--albedo", "0.5,"),
+        ("--boundary", "reflective"),
+        ("--precision", "f16"),
+        ("--backend", "tpu"),
+    ] {
+        assert!(
+            point_source::Args::try_parse_from(["point_source", flag, value]).is_err(),
+            "{flag} {value}"
+        );
+    }
     let a = point_source::Args::parse_from([
         "point_source",
         "--quick",

@@ -2,12 +2,13 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
 use clap::Parser;
 use experiments::render;
-use std::path::PathBuf;
 
-fn tmp(name: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("scatterbench-render-{name}-{}", std::process::id()))
+fn tmp(name: &str) -> std::path::PathBuf {
+    common::tmp(&format!("render-{name}"))
 }
 
 fn scene(name: &str) -> String {
