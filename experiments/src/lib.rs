@@ -24,4 +24,5 @@ pub mod pt_slab;
 pub mod render;
 pub mod renderings;
 pub mod report;
+pub mod scenes;
 pub mod transport_references;

@@ -22,13 +22,12 @@
 //!   `<scene>_a<albedo>_error.png`: the signed multiple-scattering error of each (red: too
 //!   bright, blue: too dark, saturated at 25 % of the white point).
 
-use crate::accuracy_cost::{
-    Prepared, errors, grid_config, load, parse_resolution, render_reference, scene_paths,
-};
+use crate::accuracy_cost::grid_config;
 use crate::common::{BackendArgs, CommonArgs, Ctx, parse_list, progress};
 use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::images::{ColourMap, Tile, relative_noise, white_point, write_strip};
 use crate::report::{Section, table};
+use crate::scenes::{Prepared, errors, load, parse_resolution, render_reference, scene_paths};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use solvers::pipeline::{self, ChannelImages, DiffusionMethod};

@@ -203,3 +203,43 @@ fn transport_references_quick_balance_and_grosjean_band() {
         }
     }
 }
+
+/// FLD Fig 5 quick (31³): FLD-LP's error against Grosjean near the source is below CDA's at
+/// albedo 0.5 and 0.9 (zero boundary), and every solve converges.
+#[test]
+fn point_source_quick_fld_beats_cda_near_source() {
+    let runs = Table::read(&quick().root.join("point_source/runs.csv")).unwrap();
+    for a in [0.5, 0.9] {
+        let err = |lim: &str| {
+            runs.rows()
+                .find(|r| {
+                    r.get("limiter") == lim && r.get("boundary") == "zero" && r.num("albedo") == a
+                })
+                .map_or(f64::NAN, |r| r.num("err_grosjean_near"))
+        };
+        let (lp, cda) = (err("lp"), err("cda"));
+        assert!(lp < cda, "α={a}: LP {lp} vs CDA {cda}");
+    }
+    assert!(runs.rows().all(|r| r.flag("converged")));
+}
+
+/// FLD Fig 4 quick: our default θ = 0.5 converges at every SOR factor, and iterations grow
+/// with resolution.
+#[test]
+fn convergence_quick_converges_and_iterations_grow_with_resolution() {
+    let rows = Table::read(&quick().root.join("convergence/iterations.csv")).unwrap();
+    assert!(
+        rows.rows()
+            .filter(|r| r.get("case") == "sor")
+            .all(|r| r.flag("converged"))
+    );
+    let res: Vec<f64> = rows
+        .rows()
+        .filter(|r| r.get("case") == "resolution")
+        .map(|r| r.num("iterations"))
+        .collect();
+    assert!(
+        res.len() >= 2 && res.windows(2).all(|w| w[1] >= w[0]),
+        "iterations vs n: {res:?}"
+    );
+}
