@@ -12,8 +12,9 @@
 //! reference variance; `error_single` / `error_multiple` are the same metric per component
 //! (relative to that component of the reference).
 //!
-//! **Methods** are registered in [`METHODS`], one entry each: a name, the settings it is
-//! run with, and a function that renders one setting. The path tracer itself is a method
+//! **Methods** come from the registry ([`methods`]: the path tracer and every family of
+//! `solvers::method::METHODS` with its defaults); a grid method's settings are
+//! downsampling × tolerance × precision, the path tracer's its samples per pixel. The path tracer itself is a method
 //! (settings: samples per pixel, an independent seed), which gives its error-vs-time curve.
 //! A grid method's time is the wall clock of the whole render (light baking, diffusion
 //! solve, raymarch), on each selected backend.
@@ -26,6 +27,7 @@
 
 use crate::common::{BackendArgs, CommonArgs, Ctx, parse_list, progress};
 use crate::experiment::{BackendSupport, Experiment, Promise};
+use crate::methods::Renderer;
 use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 pub use crate::scenes::{Prepared, errors, load, parse_resolution, render_reference, scene_paths};
@@ -33,8 +35,8 @@ use anyhow::{Context, Result, bail};
 use reference::effects::{PtComponents, render_components};
 use reference::pathtracer::{Contributions, RenderSettings};
 use serde::Serialize;
-use solvers::fld::{FldConfig, FluxLimiter};
-use solvers::pipeline::{self, ChannelImages, DiffusionMethod, PipelineConfig};
+use solvers::method::{MethodRef, Tolerance};
+use solvers::pipeline::{self, ChannelImages, PipelineConfig};
 use solvers::{Backend, Precision};
 use std::time::Instant;
 
@@ -146,46 +148,45 @@ pub struct Job<'a> {
     pub seed: u64,
 }
 
-/// A registered method: the one place a method joins the atlas.
-#[derive(Debug)]
+/// A method of the atlas: the path tracer, or the pipeline with a method of the registry.
+#[derive(Debug, Clone)]
 pub struct MethodEntry {
     /// Name in `points.csv` and `--methods`.
-    pub name: &'static str,
-    /// Whether it runs on the GPU backend too (else CPU only).
-    pub gpu: bool,
-    /// Its settings (`quick` for CI-sized runs; `spp` is the path tracer's ladder).
-    pub settings: fn(quick: bool, spp: &[u32]) -> Vec<Setting>,
-    /// Renders one setting.
-    pub run: fn(&Job<'_>) -> Result<Run>,
+    pub name: String,
+    /// What renders.
+    pub renderer: Renderer,
 }
 
-/// Every method of the atlas. Add one line per method.
-pub static METHODS: &[MethodEntry] = &[
-    MethodEntry {
-        name: "pt",
-        gpu: false,
-        settings: pt_settings,
-        run: run_pt,
-    },
-    MethodEntry {
-        name: "cda",
-        gpu: true,
-        settings: grid_settings,
-        run: |job| run_grid(job, DiffusionMethod::Cda),
-    },
-    MethodEntry {
-        name: "fld:lp",
-        gpu: true,
-        settings: grid_settings,
-        run: |job| run_grid(job, DiffusionMethod::Fld(FluxLimiter::LevermorePomraning)),
-    },
-    MethodEntry {
-        name: "lbm",
-        gpu: true,
-        settings: grid_settings,
-        run: |job| run_grid(job, DiffusionMethod::Lbm),
-    },
-];
+impl MethodEntry {
+    /// Its settings (`quick` for CI-sized runs; `spp` is the path tracer's ladder).
+    pub fn settings(&self, quick: bool, spp: &[u32]) -> Vec<Setting> {
+        match self.renderer {
+            Renderer::PathTracer => pt_settings(quick, spp),
+            Renderer::Pipeline(_) => grid_settings(quick, spp),
+        }
+    }
+
+    /// Renders one setting.
+    pub fn run(&self, job: &Job<'_>) -> Result<Run> {
+        match &self.renderer {
+            Renderer::PathTracer => run_pt(job),
+            Renderer::Pipeline(m) => run_grid(job, m),
+        }
+    }
+}
+
+/// Every method of the atlas: the path tracer and each family of
+/// [`solvers::method::METHODS`] with its defaults (`cda`, `fld:lp`, `lbm`, …). A method
+/// registered there joins the atlas without an edit here.
+pub fn methods() -> Vec<MethodEntry> {
+    Renderer::all()
+        .into_iter()
+        .map(|renderer| MethodEntry {
+            name: renderer.name(),
+            renderer,
+        })
+        .collect()
+}
 
 fn pt_settings(_quick: bool, spp: &[u32]) -> Vec<Setting> {
     spp.iter()
@@ -271,22 +272,20 @@ pub const PIXEL_SAMPLES: usize = 3;
 /// The pipeline settings of a grid method in the experiments: the pipeline's defaults
 /// (ω = 1.8, exact shadow rays) with this method, downsampling and tolerance, an iteration
 /// cap of [`MAX_ITERATIONS`] and [`PIXEL_SAMPLES`]² rays per pixel.
-pub fn grid_config(method: DiffusionMethod, downsample: usize, tolerance: f64) -> PipelineConfig {
-    let base = PipelineConfig::default();
+pub fn grid_config(method: &MethodRef, downsample: usize, tolerance: f64) -> PipelineConfig {
     PipelineConfig {
-        method,
+        method: method.clone(),
         downsample,
-        fld: FldConfig {
-            tolerance: Some(tolerance),
-            max_iterations: MAX_ITERATIONS,
-            ..base.fld.clone()
+        tolerance: Tolerance {
+            rel: tolerance,
+            max_steps: MAX_ITERATIONS,
         },
         pixel_samples: PIXEL_SAMPLES,
-        ..base
+        ..PipelineConfig::default()
     }
 }
 
-fn run_grid(job: &Job<'_>, method: DiffusionMethod) -> Result<Run> {
+fn run_grid(job: &Job<'_>, method: &MethodRef) -> Result<Run> {
     let config = grid_config(method, job.setting.downsample, job.setting.tolerance);
     let t0 = Instant::now();
     let r = pipeline::render_channels(
@@ -300,7 +299,7 @@ fn run_grid(job: &Job<'_>, method: DiffusionMethod) -> Result<Run> {
     let iterations: Vec<String> = r
         .diffusion
         .iter()
-        .map(|d| format!("{}:{}", d.iterations, d.status))
+        .map(|d| format!("{}:{}", d.steps, d.stop))
         .collect();
     Ok(Run {
         images: r.channels,
@@ -442,35 +441,28 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         None if quick => Some([24, 24]),
         None => None,
     };
-    let wanted: Option<Vec<String>> = args
-        .methods
-        .as_ref()
-        .map(|m| m.split(',').map(|s| s.trim().to_string()).collect());
-    if let Some(w) = &wanted
-        && let Some(bad) = w
-            .iter()
-            .find(|n| !METHODS.iter().any(|m| m.name == n.as_str()))
-    {
-        let names: Vec<&str> = METHODS.iter().map(|m| m.name).collect();
-        bail!(
-            "--methods: unknown method `{bad}` (known: {})",
-            names.join(", ")
-        );
-    }
-    let methods: Vec<&MethodEntry> = METHODS
-        .iter()
-        .filter(|m| {
-            wanted
-                .as_ref()
-                .is_none_or(|w| w.iter().any(|n| n == m.name))
+    let methods: Vec<MethodEntry> = match &args.methods {
+        None => methods(),
+        Some(list) => crate::methods::parse_list(
+            &list
+                .split(',')
+                .map(|s| s.trim().to_string())
+                .collect::<Vec<_>>(),
+        )
+        .context("--methods")?
+        .into_iter()
+        .map(|renderer| MethodEntry {
+            name: renderer.name(),
+            renderer,
         })
-        .collect();
+        .collect(),
+    };
     let scenes = scene_paths(&args.scenes)?;
     let backends = args.backend.open()?;
     let params = serde_json::json!({
         "scenes": scenes, "reference_spp": ref_spp, "spp": spp, "coarsen": coarsen,
         "resolution": resolution, "seed": args.seed,
-        "methods": methods.iter().map(|m| m.name).collect::<Vec<_>>(),
+        "methods": methods.iter().map(|m| m.name.clone()).collect::<Vec<_>>(),
         "targets": TARGETS,
     });
     ctx.start(params)?;
@@ -494,13 +486,12 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         });
         let mut jobs = Vec::new();
         for m in &methods {
-            for s in (m.settings)(quick, &spp) {
+            for s in m.settings(quick, &spp) {
                 for b in backends.list(s.precision) {
-                    let gpu = matches!(b, Backend::Gpu(_));
-                    if gpu && (!m.gpu || s.precision == Precision::F64) {
+                    if !m.renderer.supports(&b, s.precision) {
                         continue;
                     }
-                    jobs.push((*m, s.clone(), b));
+                    jobs.push((m, s.clone(), b));
                 }
             }
         }
@@ -512,16 +503,15 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                 backend: b,
                 seed: args.seed + 1000,
             };
-            let r = (m.run)(&job)?;
+            let r = m.run(&job)?;
             let (error, debiased, single, multiple) = errors(&scene, &r.images);
             points.push(Point {
                 scene: scene.name.clone(),
-                method: m.name.into(),
+                method: m.name.clone(),
                 setting: s.label.clone(),
-                backend: if m.gpu {
-                    b.to_string()
-                } else {
-                    "cpu-f64".into()
+                backend: match m.renderer {
+                    Renderer::PathTracer => "cpu-f64".into(),
+                    Renderer::Pipeline(_) => b.to_string(),
                 },
                 seconds: r.seconds,
                 error,

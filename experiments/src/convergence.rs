@@ -366,7 +366,7 @@ fn solve(
         omega: job.omega,
         n: job.n,
         sigma_eps,
-        iterations: sol.iterations,
+        iterations: sol.steps,
         seconds: sol.seconds,
         timer: sol.timer.to_string(),
         converged: sol.converged(),
@@ -374,7 +374,7 @@ fn solve(
         precision: backend.precision().name(),
         backend: backend.kind(),
     };
-    Ok((row, sol.residuals))
+    Ok((row, sol.trace.residuals))
 }
 
 /// FLD Fig 4 in the registry.

@@ -11,7 +11,9 @@
 //!   [`relative_rmse_debiased`] subtracts).
 
 use anyhow::{Result, anyhow};
+use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 
 /// √(Σ(a − r)²) / √(Σ r²) over every channel and pixel (NaN if the reference is black).
@@ -81,6 +83,25 @@ pub struct Tile<'a> {
     pub channels: Vec<&'a [f64]>,
     /// How a value maps to a colour.
     pub map: ColourMap,
+    /// Text shown above the tile (say method, albedo, resolution; `\n` starts a new line);
+    /// empty: none.
+    pub label: String,
+}
+
+impl<'a> Tile<'a> {
+    /// An unlabelled tile.
+    pub fn new(channels: Vec<&'a [f64]>, map: ColourMap) -> Self {
+        Self {
+            channels,
+            map,
+            label: String::new(),
+        }
+    }
+    /// Sets the text shown above the tile.
+    pub fn labelled(mut self, label: impl Into<String>) -> Self {
+        self.label = label.into();
+        self
+    }
 }
 
 /// How a tile's values become colours.
@@ -92,7 +113,7 @@ pub enum ColourMap {
         white: f64,
     },
     /// Signed values (the first channel): blue below 0, red above, white at 0, saturated
-    /// at ±`scale`.
+    /// at ±`scale` (a symmetric scale; a strip with such tiles carries a colour bar).
     Signed {
         /// The magnitude shown fully saturated.
         scale: f64,
@@ -122,33 +143,214 @@ fn colour(map: ColourMap, px: &[f64]) -> RGBColor {
     }
 }
 
-/// Writes tiles of `w × h` pixels side by side (2-pixel black gaps) as one PNG.
+/// The colour-bar label [`write_strip`] uses.
+pub const DEFAULT_BAR_LABEL: &str = "signed difference (method − reference)";
+
+/// Tiles narrower than this are enlarged (nearest neighbour, integer factor) when a strip
+/// carries text, so that labels and colour-bar ticks fit (px).
+const MIN_TILE_W: usize = 180;
+const GAP: i32 = 2;
+const FONT: u32 = 13;
+const LINE_H: i32 = 16;
+const PAD: i32 = 6;
+const BAR_H: i32 = 14;
+/// Room each side of the colour bar for its outermost tick labels (px).
+const BAR_MARGIN: i32 = 30;
+
+/// The value the colour bar shows at column `i` of `n`: −`scale` at the first column,
+/// +`scale` at the last, linear in between.
+fn bar_value(i: i32, n: i32, scale: f64) -> f64 {
+    if n <= 1 {
+        return 0.0;
+    }
+    scale * (2.0 * f64::from(i) / f64::from(n - 1) - 1.0)
+}
+
+/// Pixel geometry of a strip.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Layout {
+    /// Enlargement factor of the tiles.
+    zoom: usize,
+    /// Canvas size.
+    width: i32,
+    height: i32,
+    /// Left edge of the first tile.
+    x0: i32,
+    /// Top edge of the tiles (below the label band).
+    y0: i32,
+    /// The signed scale, when there is a colour bar, and the bar's top edge.
+    bar: Option<(f64, i32)>,
+}
+
+fn text_width(text: &str) -> i32 {
+    ("sans-serif", FONT)
+        .into_font()
+        .box_size(text)
+        .map_or(0, |(w, _)| w as i32)
+}
+
+fn bar_caption(bar_label: &str, scale: f64) -> String {
+    format!(
+        "{bar_label}: blue < 0 < red, symmetric, clipped at ±{}",
+        crate::plot::tick(&scale)
+    )
+}
+
+fn layout(w: usize, h: usize, tiles: &[Tile<'_>], bar_label: &str) -> Result<Layout> {
+    let mut scales = tiles.iter().filter_map(|t| match t.map {
+        ColourMap::Signed { scale } => Some(scale),
+        ColourMap::Radiance { .. } => None,
+    });
+    let scale = scales.next();
+    if let Some(s) = scale {
+        if scales.any(|o| o != s) {
+            return Err(anyhow!(
+                "signed tiles of one strip must share one scale (one colour bar)"
+            ));
+        }
+    }
+    let lines = tiles
+        .iter()
+        .map(|t| {
+            if t.label.is_empty() {
+                0
+            } else {
+                t.label.lines().count() as i32
+            }
+        })
+        .max()
+        .unwrap_or(0);
+    let text = lines > 0 || scale.is_some();
+    let zoom = if text {
+        MIN_TILE_W.div_ceil(w).max(1)
+    } else {
+        1
+    };
+    let tiles_w = (tiles.len() * w * zoom) as i32 + (tiles.len() as i32 - 1) * GAP;
+    let label_h = if lines > 0 { lines * LINE_H + PAD } else { 0 };
+    let tiles_h = (h * zoom) as i32;
+    let (width, bar) = match scale {
+        Some(s) => {
+            let caption = text_width(&bar_caption(bar_label, s)) + 2 * PAD;
+            (
+                tiles_w.max(caption).max(2 * BAR_MARGIN + 120),
+                Some((s, label_h + tiles_h + PAD)),
+            )
+        }
+        None => (tiles_w, None),
+    };
+    let bar_h = if bar.is_some() {
+        PAD + BAR_H + 4 + 2 * LINE_H + PAD
+    } else {
+        0
+    };
+    Ok(Layout {
+        zoom,
+        width,
+        height: label_h + tiles_h + bar_h,
+        x0: (width - tiles_w) / 2,
+        y0: label_h,
+        bar,
+    })
+}
+
+fn draw_strip<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    l: &Layout,
+    w: usize,
+    h: usize,
+    tiles: &[Tile<'_>],
+    bar_label: &str,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    root.fill(&BLACK)?;
+    let z = l.zoom as i32;
+    let font = ("sans-serif", FONT).into_font().color(&WHITE);
+    let centred = font.pos(Pos::new(HPos::Center, VPos::Top));
+    let mut px = Vec::with_capacity(3);
+    for (t, tile) in tiles.iter().enumerate() {
+        let tx = l.x0 + t as i32 * ((w as i32) * z + GAP);
+        for (k, line) in tile.label.lines().enumerate() {
+            let pos = (tx + (w as i32) * z / 2, PAD / 2 + k as i32 * LINE_H);
+            root.draw_text(line, &centred, pos)?;
+        }
+        for y in 0..h {
+            for x in 0..w {
+                px.clear();
+                px.extend(tile.channels.iter().map(|c| c[y * w + x]));
+                let c = colour(tile.map, &px);
+                let (x0, y0) = (tx + x as i32 * z, l.y0 + y as i32 * z);
+                if z == 1 {
+                    root.draw_pixel((x0, y0), &c)?;
+                } else {
+                    root.draw(&Rectangle::new([(x0, y0), (x0 + z, y0 + z)], c.filled()))?;
+                }
+            }
+        }
+    }
+    if let Some((scale, top)) = l.bar {
+        let (left, right) = (BAR_MARGIN, l.width - BAR_MARGIN);
+        let n = right - left;
+        let map = ColourMap::Signed { scale };
+        for i in 0..n {
+            let c = colour(map, &[bar_value(i, n, scale)]);
+            root.draw(&Rectangle::new(
+                [(left + i, top), (left + i + 1, top + BAR_H)],
+                c.filled(),
+            ))?;
+        }
+        let ticks = if n >= 300 { 4 } else { 2 };
+        for k in 0..=ticks {
+            let i = (n - 1) * k / ticks;
+            let v = bar_value(i, n, scale);
+            let x = left + i;
+            root.draw(&PathElement::new(
+                vec![(x, top + BAR_H), (x, top + BAR_H + 4)],
+                WHITE.stroke_width(1),
+            ))?;
+            root.draw_text(&crate::plot::tick(&v), &centred, (x, top + BAR_H + 4))?;
+        }
+        root.draw_text(
+            &bar_caption(bar_label, scale),
+            &centred,
+            (l.width / 2, top + BAR_H + 4 + LINE_H + 2),
+        )?;
+    }
+    Ok(())
+}
+
+/// Writes tiles of `w × h` pixels side by side (2-pixel black gaps) as one PNG, each with
+/// its label above it; a strip with signed tiles gets a colour bar labelled
+/// [`DEFAULT_BAR_LABEL`] (see [`write_strip_with_bar`]).
 pub fn write_strip(path: &Path, w: usize, h: usize, tiles: &[Tile<'_>]) -> Result<()> {
+    write_strip_with_bar(path, w, h, tiles, DEFAULT_BAR_LABEL)
+}
+
+/// [`write_strip`] with the quantity (and unit) the colour bar of signed tiles shows, e.g.
+/// "radiance difference (W m⁻² sr⁻¹)". Tiles narrower than 180 px are enlarged by an
+/// integer factor when the strip carries labels or a colour bar; signed tiles must share
+/// one scale.
+pub fn write_strip_with_bar(
+    path: &Path,
+    w: usize,
+    h: usize,
+    tiles: &[Tile<'_>],
+    bar_label: &str,
+) -> Result<()> {
     if tiles.is_empty() || w == 0 || h == 0 {
         return Err(anyhow!("writing {}: no pixels", path.display()));
     }
-    let gap = 2;
-    let total_w = tiles.len() * w + (tiles.len() - 1) * gap;
-    let root = BitMapBackend::new(path, (total_w as u32, h as u32)).into_drawing_area();
-    root.fill(&BLACK).map_err(|e| draw_error(path, e))?;
-    let mut px = Vec::with_capacity(3);
     for (t, tile) in tiles.iter().enumerate() {
-        if tile.channels.iter().any(|c| c.len() != w * h) {
+        if tile.channels.is_empty() || tile.channels.iter().any(|c| c.len() != w * h) {
             return Err(anyhow!(
                 "writing {}: tile {t} is not {w}x{h}",
                 path.display()
             ));
         }
-        let x0 = t * (w + gap);
-        for y in 0..h {
-            for x in 0..w {
-                px.clear();
-                px.extend(tile.channels.iter().map(|c| c[y * w + x]));
-                root.draw_pixel(((x0 + x) as i32, y as i32), &colour(tile.map, &px))
-                    .map_err(|e| draw_error(path, e))?;
-            }
-        }
     }
+    crate::plot::register_font();
+    let l = layout(w, h, tiles, bar_label).map_err(|e| draw_error(path, e))?;
+    let root = BitMapBackend::new(path, (l.width as u32, l.height as u32)).into_drawing_area();
+    draw_strip(&root, &l, w, h, tiles, bar_label).map_err(|e| draw_error(path, e))?;
     root.present().map_err(|e| draw_error(path, e))?;
     Ok(())
 }
@@ -165,10 +367,7 @@ pub fn write_radiance_png(
         path,
         w,
         h,
-        &[Tile {
-            channels: channels.to_vec(),
-            map: ColourMap::Radiance { white },
-        }],
+        &[Tile::new(channels.to_vec(), ColourMap::Radiance { white })],
     )
 }
 
@@ -188,5 +387,83 @@ mod tests {
         // Removing a reference variance equal to the squared error leaves 0.
         assert_eq!(relative_rmse_debiased(&[&a], &[&r], &[&se]), 0.0);
         assert!(relative_rmse(&[&a], &[&[0.0; 4]]).is_nan());
+    }
+
+    #[test]
+    fn colour_bar_ends_are_the_maps_end_colours() {
+        let scale = 0.5;
+        let map = ColourMap::Signed { scale };
+        let n = 101;
+        assert_eq!(bar_value(0, n, scale), -scale);
+        assert_eq!(bar_value(n - 1, n, scale), scale);
+        assert_eq!(bar_value(50, n, scale), 0.0);
+        assert_eq!(colour(map, &[bar_value(0, n, scale)]), RGBColor(0, 0, 255));
+        assert_eq!(
+            colour(map, &[bar_value(n - 1, n, scale)]),
+            RGBColor(255, 0, 0)
+        );
+        assert_eq!(
+            colour(map, &[bar_value(50, n, scale)]),
+            RGBColor(255, 255, 255)
+        );
+        // Beyond the scale the map clips to the end colours.
+        assert_eq!(colour(map, &[-3.0]), RGBColor(0, 0, 255));
+    }
+
+    /// Renders a strip into memory and returns (layout, RGB bytes).
+    fn render(w: usize, h: usize, tiles: &[Tile<'_>]) -> (Layout, Vec<u8>) {
+        crate::plot::register_font();
+        let l = layout(w, h, tiles, "radiance difference").unwrap();
+        let mut buf = vec![0u8; (l.width * l.height * 3) as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut buf, (l.width as u32, l.height as u32))
+                .into_drawing_area();
+            draw_strip(&root, &l, w, h, tiles, "radiance difference").unwrap();
+            root.present().unwrap();
+        }
+        (l, buf)
+    }
+
+    #[test]
+    fn signed_strip_draws_its_colour_bar_and_labels() {
+        let d = [-1.0, 0.0, 0.0, 1.0];
+        let tiles = [
+            Tile::new(vec![&d[..]], ColourMap::Signed { scale: 1.0 }).labelled("cda\nα = 0.9"),
+            Tile::new(vec![&d[..]], ColourMap::Signed { scale: 1.0 }).labelled("lp"),
+        ];
+        let (l, buf) = render(2, 2, &tiles);
+        let pixel = |x: i32, y: i32| {
+            let i = ((y * l.width + x) * 3) as usize;
+            RGBColor(buf[i], buf[i + 1], buf[i + 2])
+        };
+        assert_eq!(l.zoom, 90);
+        let (_, top) = l.bar.unwrap();
+        let mid = top + BAR_H / 2;
+        assert_eq!(pixel(BAR_MARGIN, mid), RGBColor(0, 0, 255));
+        assert_eq!(pixel(l.width - BAR_MARGIN - 1, mid), RGBColor(255, 0, 0));
+        // The tile's pixels are enlarged: its first pixel (−1) is blue over 90 × 90.
+        assert_eq!(pixel(l.x0 + 89, l.y0 + 89), RGBColor(0, 0, 255));
+        assert_eq!(pixel(l.x0 + 90, l.y0), RGBColor(255, 255, 255));
+        // Two label lines above the tiles, and some text was drawn there.
+        assert_eq!(l.y0, 2 * LINE_H + PAD);
+        let lit = (0..l.y0)
+            .flat_map(|y| (0..l.width).map(move |x| (x, y)))
+            .filter(|&(x, y)| pixel(x, y) != RGBColor(0, 0, 0))
+            .count();
+        assert!(lit > 20, "{lit} label pixels");
+        // Different scales would need two bars.
+        let other = [
+            Tile::new(vec![&d[..]], ColourMap::Signed { scale: 1.0 }),
+            Tile::new(vec![&d[..]], ColourMap::Signed { scale: 2.0 }),
+        ];
+        assert!(layout(2, 2, &other, "x").is_err());
+    }
+
+    #[test]
+    fn unlabelled_radiance_strip_keeps_its_size() {
+        let v = [0.5; 6];
+        let tiles = [Tile::new(vec![&v[..]], ColourMap::Radiance { white: 1.0 })];
+        let l = layout(3, 2, &tiles, DEFAULT_BAR_LABEL).unwrap();
+        assert_eq!((l.zoom, l.width, l.height, l.bar), (1, 3, 2, None));
     }
 }

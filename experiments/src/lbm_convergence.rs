@@ -187,7 +187,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepsRow>> {
                 .with_context(|| format!("{s} {n}³ on {backend}"))?;
                 out.timing(format!("{s} {n}³ {backend}"), sol.seconds);
                 let mut prev: Option<StepRecord> = None;
-                for r in &sol.history {
+                for r in &sol.trace.history {
                     let rel = prev
                         .map(|p| {
                             (r.total_density - p.total_density).abs()
@@ -208,7 +208,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepsRow>> {
                 }
                 let last = sol.last().copied();
                 for &t in &tols {
-                    let st = steps_to(&sol.history, t);
+                    let st = steps_to(&sol.trace.history, t);
                     rows.push(StepsRow {
                         series: s,
                         n,

@@ -186,7 +186,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<CaseRow>> {
                 + (k as f64 - c as f64).powi(2))
             .sqrt();
             if r >= args.r_min && r <= r_max {
-                let (x, y) = (1.0 / r, sol.rho[idx]);
+                let (x, y) = (1.0 / r, sol.trace.rho[idx]);
                 sx += x;
                 sy += y;
                 sxx += x * x;
@@ -213,7 +213,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<CaseRow>> {
             sigma_a: sa,
             n,
             steps: sol.steps,
-            steady: sol.steady(),
+            steady: sol.converged(),
             d_eq19: d19,
             d_fit,
             ratio: d_fit / d19,
@@ -235,7 +235,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<CaseRow>> {
             .sqrt();
             let s = r.round() as usize;
             if s >= 1 && s < n / 2 {
-                shells[s].0 += sol.rho[idx];
+                shells[s].0 += sol.trace.rho[idx];
                 shells[s].1 += 1;
             }
         }
@@ -289,7 +289,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<CaseRow>> {
         &series,
     )?;
     let mut prof = Vec::new();
-    for (k, &(st, sa)) in cases.iter().enumerate().filter(|(_, c)| c.1 == sas[0]) {
+    for (k, &(st, sa)) in cases.iter().filter(|c| c.1 == sas[0]).enumerate() {
         let p: Vec<(f64, f64)> = profiles
             .iter()
             .filter(|p| p.sigma_t == st && p.sigma_a == sa)

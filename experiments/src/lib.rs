@@ -14,6 +14,7 @@ pub mod experiment;
 pub mod images;
 pub mod lbm_convergence;
 pub mod lbm_diffusion_limit;
+pub mod methods;
 pub mod mitsuba_compare;
 pub mod plot;
 pub mod point_source;

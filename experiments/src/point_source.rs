@@ -421,7 +421,7 @@ fn solve_case(
         precision: backend.precision().name(),
         backend: backend.kind(),
         omega,
-        iterations: sol.iterations,
+        iterations: sol.steps,
         converged: sol.converged(),
         residual: sol.final_residual(),
         seconds: sol.seconds,

@@ -1,8 +1,9 @@
 //! `render`: one scene file, one method → images, the plan and the timings.
 //!
-//! `--scene FILE --method pt|cda|fld[:limiter] --backend cpu|gpu --out DIR [--explain]`
+//! `--scene FILE --method pt|<registered method> --backend cpu|gpu --out DIR [--explain]`
 //! renders the scene's camera image with the grid pipeline (`solvers::pipeline`: light
-//! baking and raymarching on the CPU, the diffusion solve on `--backend`) or with the path
+//! baking and raymarching on the CPU, the multiple-scattering solve with any method of
+//! `solvers::method::METHODS` — `cda`, `fld[:limiter]`, `lbm`, … — on `--backend`) or with the path
 //! tracer (`--method pt`, on exactly the effects the grid pipeline would render, via
 //! `reference::effects`). The scene's `[effects]` table restricts what is rendered.
 //!
@@ -12,8 +13,8 @@
 //! * per component that ran, `single.*`, `multiple.*`, `emission.*` (same exposure);
 //!   path tracer: also `image_stderr.pfm` (per-pixel standard errors);
 //! * `plan.json`: method, effects, the plan (passes with why, skipped passes with why), the
-//!   passes that ran with their seconds, and the diffusion solves (grid, iterations,
-//!   residual, status);
+//!   passes that ran with their seconds, and the multiple-scattering solves (method, grid,
+//!   steps, last change, stop reason, seconds);
 //! * `passes.csv`: `pass,channel,seconds`;
 //! * `meta.json`: command, parameters, git revision, machine, timings.
 //!
@@ -21,19 +22,23 @@
 //! `--quick` caps the image at 24×24 pixels and the path tracer at 16 samples per pixel.
 
 use crate::common::{BackendArgs, CommonArgs, Output};
+use crate::methods::Renderer;
 use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
 use reference::effects::{Component, render_components};
 use reference::pathtracer::{Contributions, RenderSettings};
 use serde::Serialize;
 use solvers::Precision;
-use solvers::pipeline::{self, DiffusionMethod, PipelineConfig, Shadows};
+use solvers::method::{Params, Tolerance};
+use solvers::pipeline::{self, PipelineConfig, Shadows};
 use solvers::scene::{Scene, SceneFile};
 use std::path::{Path, PathBuf};
 
 /// Flags of `render`.
 #[derive(Debug, Clone, clap::Parser)]
-#[command(about = "Render a scene file with the path tracer or the CDA/FLD pipeline")]
+#[command(
+    about = "Render a scene file with the path tracer or the grid pipeline (any registered method)"
+)]
 pub struct Args {
     /// Shared flags.
     #[command(flatten)]
@@ -44,8 +49,9 @@ pub struct Args {
     /// The scene file.
     #[arg(long)]
     pub scene: PathBuf,
-    /// `pt`, `cda`, `fld` (Levermore–Pomraning) or `fld:<limiter>`.
-    #[arg(long, default_value = "fld")]
+    /// `pt` (path tracer) or a registered method (`cda`, `fld` = `fld:lp`, `fld:<limiter>`,
+    /// `lbm`, …; case-insensitive).
+    #[arg(long, default_value = "fld", long_help = crate::methods::help())]
     pub method: String,
     /// Print the plan and why each pass runs or not.
     #[arg(long)]
@@ -68,13 +74,18 @@ pub struct Args {
     /// `exact` shadow rays or the paper's `dsm` (deep shadow map) in single scattering.
     #[arg(long, default_value = "exact")]
     pub shadows: String,
-    /// SOR factor of the diffusion solve.
-    #[arg(long, default_value_t = 1.8)]
-    pub omega: f64,
-    /// Stop the diffusion solve at this normalised residual R̄/j̄ (the paper's 10⁻⁴).
+    /// SOR factor of CDA/FLD (the method parameter `omega`; default 1.8).
+    #[arg(long)]
+    pub omega: Option<f64>,
+    /// Method parameters, `name=value`, comma-separated (e.g. `omega=1.5,theta=1`); each
+    /// method lists those it accepts in its error.
+    #[arg(long, value_delimiter = ',')]
+    pub param: Vec<String>,
+    /// Stop the multiple-scattering solve at this tolerance (one meaning for every method,
+    /// `solvers::method::Tolerance`; for CDA/FLD the normalised residual R̄/j̄, the paper's 10⁻⁴).
     #[arg(long, default_value_t = 1e-4)]
     pub tolerance: f64,
-    /// Iteration cap of the diffusion solve (a solve that hits it is reported in plan.json).
+    /// Step cap of the multiple-scattering solve (a solve that hits it is reported in plan.json).
     #[arg(long, default_value_t = 20_000)]
     pub max_iterations: usize,
 }
@@ -125,30 +136,33 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         "dsm" => Shadows::DeepShadowMap,
         other => bail!("--shadows must be exact or dsm, got `{other}`"),
     };
-    let pt = args.method.trim() == "pt";
-    let method: DiffusionMethod = if pt {
-        DiffusionMethod::Fld(solvers::fld::FluxLimiter::LevermorePomraning)
-    } else {
-        args.method
-            .parse()
-            .with_context(|| format!("--method `{}`", args.method))?
-    };
+    let mut params = Params::parse(args.param.iter().map(String::as_str)).context("--param")?;
+    if let Some(w) = args.omega {
+        params = params.with("omega", w);
+    }
+    let renderer = Renderer::parse_with(&args.method, &params)
+        .with_context(|| format!("--method `{}`", args.method))?;
     let precision: Precision = args
         .precision
         .parse()
         .with_context(|| format!("--precision `{}`", args.precision))?;
-    let config = PipelineConfig {
-        method,
+    let mut config = PipelineConfig {
         downsample: args.downsample,
         step: args.step,
         pixel_samples: args.pixel_samples,
         shadows,
-        fld: PipelineConfig::default()
-            .fld
-            .with_omega(args.omega)
-            .with_tolerance(args.tolerance)
-            .with_max_iterations(args.max_iterations),
+        tolerance: Tolerance {
+            rel: args.tolerance,
+            max_steps: args.max_iterations,
+        },
         ..PipelineConfig::default()
+    };
+    let pt = match &renderer {
+        Renderer::PathTracer => true,
+        Renderer::Pipeline(m) => {
+            config.method = m.clone();
+            false
+        }
     };
     let spp = args
         .spp
@@ -165,7 +179,6 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         }),
     )?;
     let [w, h] = camera.resolution;
-    let plan = pipeline::plan_channels(&channels, &file.effects, &config);
     let (result, plan_json) = if pt {
         let (_, effects) = pipeline::effects_of(&channels, &file.effects, &config)?;
         if args.explain {
@@ -231,9 +244,9 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             json,
         )
     } else {
-        let plan = plan?;
+        let plan = pipeline::plan_channels(&channels, &file.effects, &config)?;
         if args.explain {
-            println!("method: {method}, downsample {}", args.downsample);
+            println!("method: {}, downsample {}", config.method, args.downsample);
             print!("{}", plan.explain());
         }
         let backends = args.backend.open()?;
@@ -275,7 +288,7 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             })
             .collect();
         let json = serde_json::json!({
-            "method": method.to_string(), "backend": backend.to_string(),
+            "method": config.method.name(), "backend": backend.to_string(),
             "downsample": args.downsample, "plan": r.plan,
             "passes_run": r.passes_run, "diffusion": r.diffusion,
         });

@@ -25,12 +25,15 @@
 use crate::accuracy_cost::grid_config;
 use crate::common::{BackendArgs, CommonArgs, Ctx, parse_list, progress};
 use crate::experiment::{BackendSupport, Experiment, Promise};
-use crate::images::{ColourMap, Tile, relative_noise, white_point, write_strip};
+use crate::images::{
+    ColourMap, Tile, relative_noise, white_point, write_strip, write_strip_with_bar,
+};
 use crate::report::{Section, table};
 use crate::scenes::{Prepared, errors, load, parse_resolution, render_reference, scene_paths};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
-use solvers::pipeline::{self, ChannelImages, DiffusionMethod};
+use solvers::method::MethodRef;
+use solvers::pipeline::{self, ChannelImages};
 use solvers::{Backend, Precision};
 use std::time::Instant;
 
@@ -50,8 +53,8 @@ pub struct Args {
     /// Albedos of the sweep (default 0.1,0.3,0.5,0.7,0.9,1.0; 0.3,0.9 with --quick).
     #[arg(long)]
     pub albedo: Option<String>,
-    /// Grid methods: cda, fld (LP) or fld:<limiter>.
-    #[arg(long, default_value = "cda,fld:lp")]
+    /// Grid methods, comma-separated: any registered method (see `render --help`).
+    #[arg(long, default_value = "cda,fld:lp", long_help = format!("Grid methods, comma-separated; {}", solvers::method::names()))]
     pub methods: String,
     /// Diffusion downsampling factors (1 = full resolution).
     #[arg(long, default_value = "1,4")]
@@ -63,7 +66,8 @@ pub struct Args {
     /// Samples per pixel of the reference (default 1024; 64 with --quick).
     #[arg(long)]
     pub spp: Option<u32>,
-    /// Solver tolerance (R̄/j̄; LBM: × 10⁻² on the relative density change).
+    /// Solver tolerance (`solvers::method::Tolerance::rel`: R̄/j̄ for CDA/FLD; each method
+    /// documents its mapping).
     #[arg(long, default_value_t = 1e-4)]
     pub tolerance: f64,
     /// Coarsen the scenes' media first (default 1; 2 with --quick).
@@ -191,10 +195,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
     if let Some(a) = albedos.iter().find(|a| !(0.0..=1.0).contains(*a)) {
         bail!("--albedo: {a} is outside [0, 1]");
     }
-    let methods: Vec<DiffusionMethod> = args
+    let methods: Vec<MethodRef> = args
         .methods
         .split(',')
-        .map(|m| m.trim().parse::<DiffusionMethod>())
+        .map(|m| m.trim().parse::<MethodRef>())
         .collect::<Result<_, _>>()
         .context("--methods")?;
     let factors: Vec<usize> = parse_list("downsample", &args.downsample)?;
@@ -254,7 +258,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
             let noise = scene.noise();
             let mut renders: Vec<(String, usize, Vec<ChannelImages>)> = Vec::new();
             for b in backends.list(Precision::F32) {
-                for &m in &methods {
+                for m in &methods {
                     for &k in &factors {
                         if k == 1 && !full_at.contains(&albedo) {
                             continue;
@@ -286,12 +290,14 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
                             iterations: r
                                 .diffusion
                                 .iter()
-                                .map(|d| d.iterations.to_string())
+                                .map(|d| d.steps.to_string())
                                 .collect::<Vec<_>>()
                                 .join("/"),
                         });
                         if matches!(b, Backend::Cpu(_)) {
-                            renders.push((format!("{m} ds={k}"), k, r.channels));
+                            let g = r.diffusion.first().map_or([0; 3], |d| d.grid);
+                            let label = format!("{m} ds={k}, {}×{}×{} grid", g[0], g[1], g[2]);
+                            renders.push((label, k, r.channels));
                         }
                     }
                 }
@@ -324,15 +330,19 @@ fn write_images(
     };
     let [w, h] = cam.resolution;
     let white = white_point(ref_total);
-    let mut tiles = vec![Tile {
-        channels: ref_total.to_vec(),
-        map: ColourMap::Radiance { white },
-    }];
-    for (_, _, im) in renders {
-        tiles.push(Tile {
-            channels: im.iter().map(|c| c.total.as_slice()).collect(),
-            map: ColourMap::Radiance { white },
-        });
+    let common = format!("α = {albedo}, {w}×{h} px");
+    let mut tiles = vec![
+        Tile::new(ref_total.to_vec(), ColourMap::Radiance { white })
+            .labelled(format!("path tracer (reference)\n{common}")),
+    ];
+    for (label, _, im) in renders {
+        tiles.push(
+            Tile::new(
+                im.iter().map(|c| c.total.as_slice()).collect(),
+                ColourMap::Radiance { white },
+            )
+            .labelled(format!("{label}\n{common}")),
+        );
     }
     let stem = format!("{}_a{albedo}", scene.name);
     write_strip(&out.path(&format!("{stem}.png")), w, h, &tiles)?;
@@ -352,15 +362,16 @@ fn write_images(
         .collect();
     let tiles: Vec<Tile> = diffs
         .iter()
-        .map(|d| Tile {
-            channels: vec![d.as_slice()],
-            map: ColourMap::Signed {
-                scale: 0.25 * white * scene.channels.len() as f64,
-            },
+        .zip(renders)
+        .map(|(d, (label, _, _))| {
+            let scale = 0.25 * white * scene.channels.len() as f64;
+            Tile::new(vec![d.as_slice()], ColourMap::Signed { scale })
+                .labelled(format!("{label}\n{common}"))
         })
         .collect();
     if !tiles.is_empty() {
-        write_strip(&out.path(&format!("{stem}_error.png")), w, h, &tiles)?;
+        let bar = "multiple-scattering radiance, method − path tracer (scene units, channel sum)";
+        write_strip_with_bar(&out.path(&format!("{stem}_error.png")), w, h, &tiles, bar)?;
     }
     Ok(())
 }

@@ -47,7 +47,6 @@ impl Prepared {
 }
 
 /// Scene files from a comma-separated list; relative paths that do not exist from the
-
 /// current directory are taken from the workspace root.
 pub fn scene_paths(list: &str) -> Result<Vec<PathBuf>> {
     let root = workspace_root();
@@ -115,7 +114,6 @@ pub fn load(
 }
 
 /// Renders the path-traced reference of every channel (`spp` ≥ 16 samples per pixel,
-
 /// up to 32 batches).
 pub fn render_reference(scene: &mut Prepared, spp: u32, seed: u64) -> Result<()> {
     let settings = RenderSettings {

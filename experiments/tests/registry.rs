@@ -72,7 +72,7 @@ fn accuracy_cost_quick_atlas() {
     for s in ["nebula", "emissive_cloud", "shell_core", "plume"] {
         assert!(dir.join(format!("pareto_{s}.png")).exists());
         let mine: Vec<_> = points.rows().filter(|p| p.get("scene") == s).collect();
-        for m in experiments::accuracy_cost::METHODS {
+        for m in experiments::accuracy_cost::methods() {
             assert!(
                 mine.iter().any(|p| p.get("method") == m.name),
                 "{s}: no point of {}",

@@ -27,12 +27,14 @@ impl Precision {
 impl std::str::FromStr for Precision {
     type Err = SolverError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s.trim() {
+        match s.trim().to_ascii_lowercase().as_str() {
             "f32" => Ok(Precision::F32),
             "f64" => Ok(Precision::F64),
-            other => Err(SolverError::Unsupported(format!(
-                "unknown precision `{other}`; expected f32 or f64"
-            ))),
+            other => Err(SolverError::UnknownName {
+                what: "precision",
+                got: other.to_string(),
+                known: "f32, f64".into(),
+            }),
         }
     }
 }

@@ -65,6 +65,16 @@ pub enum SolverError {
         "unknown flux limiter `{0}`; expected one of cda, sum, max, kershaw, larsen<n> (e.g. larsen2), lp"
     )]
     UnknownLimiter(String),
+    /// A name (method, method parameter, precision …) that is not one of those that exist.
+    #[error("unknown {what} `{got}`; known: {known}")]
+    UnknownName {
+        /// What kind of name.
+        what: &'static str,
+        /// The name given.
+        got: String,
+        /// The names that exist.
+        known: String,
+    },
     /// A GPU backend failure (no adapter, grid too large for the device, device lost …).
     #[error(transparent)]
     Gpu(#[from] crate::gpu::GpuError),

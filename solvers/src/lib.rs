@@ -7,6 +7,7 @@
 //! |---|---|---|
 //! | [`fld`] | classical diffusion (CDA) and flux-limited diffusion (FLD), red-black SOR | Koerner et al., *Flux-Limited Diffusion for Multiple Scattering in Participating Media* (FLD Eqs 30–37, Algorithm 1) |
 //! | [`lbm`] | lattice-Boltzmann lighting, D3Q19 photon transport | Geist et al., *Lattice-Boltzmann Lighting* (LB Eqs 3–6, 19, Appendices A–B) |
+//! | [`method`] | one interface ([`Method`]) and one registry ([`method::METHODS`]) for every method above | |
 //! | [`pipeline`] | light baking → diffusion → primary raymarch, planned from the scene's effects | FLD Fig 2, Eqs 3, 6, 8, Section 6.2 |
 //!
 //! Shared building blocks: [`grid`] (the voxel grid), [`medium`] (σt, albedo and emission
@@ -26,6 +27,7 @@ pub mod gpu;
 pub mod grid;
 pub mod lbm;
 pub mod medium;
+pub mod method;
 pub mod noise;
 pub mod pipeline;
 pub mod real;
@@ -37,4 +39,5 @@ pub use backend::{Backend, Precision};
 pub use error::SolverError;
 pub use grid::Grid;
 pub use medium::Medium;
+pub use method::{Method, MethodRef, Problem, Solution, Stop, Tolerance};
 pub use real::Real;

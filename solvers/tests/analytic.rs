@@ -51,7 +51,7 @@ fn cda_with_analytic_boundary_reproduces_eq_27() {
         let sol = CpuFld::new(&medium, &Boundary::from_fn(&g, exact), &cfg)
             .unwrap()
             .solve();
-        assert!(sol.converged(), "α={albedo}: {:?}", sol.status);
+        assert!(sol.converged(), "α={albedo}: {:?}", sol.stop);
         let mut shells = vec![(0.0, 0.0); n];
         let mut worst_far = 0.0f64;
         for idx in 0..g.len() {
@@ -79,7 +79,7 @@ fn cda_with_analytic_boundary_reproduces_eq_27() {
         let ratio = axis(4) / axis(8);
         println!(
             "α={albedo}: shells ≥ 3 voxels max |rel err| {worst_shell:.5}; voxels > 8: {worst_far:.5}; axis error 4 vs 8 voxels ratio {ratio:.2}; {} iterations",
-            sol.iterations
+            sol.steps
         );
         assert!(
             worst_shell < 0.01,
@@ -170,7 +170,7 @@ fn near_source_error<T: Real>(n: usize, albedo: f64, limiter: FluxLimiter) -> f6
     let ps = PointSource::new(4.0, albedo).unwrap();
     let cfg = FldConfig::fld(limiter).with_omega(FldConfig::poisson_optimal_omega(n));
     let sol = CpuFld::new(&medium, &Boundary::Zero, &cfg).unwrap().solve();
-    assert!(sol.converged(), "{limiter} α={albedo}: {:?}", sol.status);
+    assert!(sol.converged(), "{limiter} α={albedo}: {:?}", sol.stop);
     let (mut num, mut den) = (0.0, 0.0);
     for idx in 0..g.len() {
         let r = distance(&g, src, idx);
@@ -210,21 +210,18 @@ fn fig4_case_converges_for_sor_1_to_1_9() {
             .with_omega(omega)
             .with_max_iterations(20_000);
         let sol = CpuFld::new(&medium, &Boundary::Zero, &cfg).unwrap().solve();
-        println!(
-            "ω={omega}: f64 {} iterations, {:?}",
-            sol.iterations, sol.status
-        );
+        println!("ω={omega}: f64 {} iterations, {:?}", sol.steps, sol.stop);
         assert!(
             sol.converged(),
             "ω={omega}: {:?} after {} iterations, R̄/j̄ = {}",
-            sol.status,
-            sol.iterations,
+            sol.stop,
+            sol.steps,
             sol.final_residual()
         );
         let sol32 = CpuFld::new(&medium32, &Boundary::Zero, &cfg)
             .unwrap()
             .solve();
-        assert!(sol32.converged(), "f32 ω={omega}: {:?}", sol32.status);
+        assert!(sol32.converged(), "f32 ω={omega}: {:?}", sol32.stop);
         assert!(sol32.phi.iter().all(|x| x.is_finite() && *x >= 0.0));
         // f32 and f64 agree where φ is not negligible.
         let max = sol.phi.iter().fold(0.0f64, |a, &b| a.max(b));

@@ -1,6 +1,13 @@
 //! Backend conformance: one test body per case, instantiated for CPU-f32, CPU-f64 and the GPU
 //! (issue "GPU backend pattern"), plus GPU-vs-CPU-f32 agreement.
 //!
+//! * `method_conformance!` stamps the generic suite (`common/methods.rs`: finite and ≥ 0 on
+//!   hostile media, mirror symmetry, degree-1 homogeneity in the source, energy balance where
+//!   the method defines an outflow, typed errors, GPU ≈ CPU-f32) for **every registered
+//!   method**, one line each; `every_registered_method_is_conformance_tested` fails when a
+//!   method of `solvers::method::METHODS` has no line.
+//! * The FLD-specific cases below (FLD Eq 27, convergence to the f64 solution).
+//!
 //! GPU tests share one device and run one at a time (helpers in `common/mod.rs`).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -12,6 +19,26 @@ use reference::point_source::{PointSource, Solution};
 use solvers::fld::{self, Boundary, FldConfig, FldSolution, FluxLimiter};
 use solvers::gpu::GpuContext;
 use solvers::{Backend, Medium, Precision, scenes};
+
+method_conformance!(
+    cda: "cda",
+    fld_lp: "fld:lp",
+    lbm: "lbm",
+);
+
+/// Every family of the registry has a `method_conformance!` line above.
+#[test]
+fn every_registered_method_is_conformance_tested() {
+    for family in solvers::method::METHODS {
+        assert!(
+            CONFORMANCE_TESTED
+                .iter()
+                .any(|spec| spec.split(':').next() == Some(family.name)),
+            "method family `{}` is registered but has no method_conformance! line",
+            family.name
+        );
+    }
+}
 
 conformance!(
     point_source_cda_matches_eq_27,
@@ -41,8 +68,8 @@ fn solve_converged(
         sol.converged(),
         "{b} {}: {:?} after {}",
         cfg.limiter,
-        sol.status,
-        sol.iterations
+        sol.stop,
+        sol.steps
     );
     sol
 }
@@ -217,7 +244,7 @@ fn gpu_matches_cpu_f32(
 ) {
     let cpu = solve(&Backend::Cpu(Precision::F32), medium, boundary, cfg);
     let gpu = solve(&Backend::Gpu(ctx), medium, boundary, cfg);
-    assert_eq!(cpu.status, gpu.status, "{what}: status differs");
+    assert_eq!(cpu.stop, gpu.stop, "{what}: status differs");
     let (d, idx) = max_rel_diff(&gpu.phi, &cpu.phi, 1e-6);
     assert!(
         d <= 1e-3,
@@ -225,7 +252,7 @@ fn gpu_matches_cpu_f32(
         gpu.phi[idx],
         cpu.phi[idx]
     );
-    let (ic, ig) = (cpu.iterations as f64, gpu.iterations as f64);
+    let (ic, ig) = (cpu.steps as f64, gpu.steps as f64);
     assert!(
         (ic - ig).abs() <= 0.02 * ic.max(ig),
         "{what}: iterations CPU-f32 {ic} vs GPU {ig}: differ by more than 2 %"

@@ -44,7 +44,7 @@ fn energy_balance_without_absorption(b: &Backend<'_>) {
         Precision::F32 => (LbmConfig::default(), 1e-3),
     };
     let sol = solve(b, &m, &oblique(), &cfg);
-    assert!(sol.steady(), "{b}: {:?} after {}", sol.status, sol.steps);
+    assert!(sol.converged(), "{b}: {:?} after {}", sol.stop, sol.steps);
     let r = sol.last().unwrap();
     let resid = (r.injected - r.outflow).abs() / r.injected;
     eprintln!(
@@ -121,7 +121,7 @@ fn finite_and_non_negative_on_a_hostile_medium(b: &Backend<'_>) {
     ] {
         let sol = solve(b, &m, &oblique(), &cfg.clone().fixed_steps(60));
         assert_eq!(sol.steps, 60);
-        for (what, f) in [("phi", &sol.phi), ("rho", &sol.rho)] {
+        for (what, f) in [("phi", &sol.phi), ("rho", &sol.trace.rho)] {
             if let Some((i, v)) = f
                 .iter()
                 .enumerate()
@@ -196,7 +196,7 @@ fn errors_vs_pt(b: &Backend<'_>, albedo: f64, absorption: Absorption) -> ((f64, 
     let s = beam_scene(albedo);
     let cfg = LbmConfig::default().with_absorption(absorption);
     let sol = lbm::solve_scene(b, &s, &cfg).unwrap();
-    assert!(sol.steady(), "{b}: {:?}", sol.status);
+    assert!(sol.converged(), "{b}: {:?}", sol.stop);
     let lb = layers(&s.medium.grid, &sol.phi);
     let (pt, _) = pt_layers(albedo);
     let ratios = lb
@@ -314,7 +314,7 @@ fn paper_hg_energy_error_at_steady_state() {
                 .with_phase(Phase::HenyeyGreenstein { g }, hg)
                 .with_tolerance(1e-12);
             let sol = solve(&Backend::Cpu(Precision::F64), &m, &inj, &cfg);
-            assert!(sol.steady(), "g={g} {hg:?}: {:?}", sol.status);
+            assert!(sol.converged(), "g={g} {hg:?}: {:?}", sol.stop);
             let r = sol.last().unwrap();
             errs[k] = (r.outflow - r.injected) / r.injected;
             eprintln!(
@@ -360,7 +360,7 @@ proptest! {
         for p in [Precision::F32, Precision::F64] {
             let sol = solve(&Backend::Cpu(p), &m2, &oblique(), &cfg);
             prop_assert!(sol.phi.iter().all(|v| v.is_finite() && *v >= 0.0));
-            prop_assert!(sol.history.iter().all(|r| r.total_density.is_finite() && r.outflow >= 0.0));
+            prop_assert!(sol.trace.history.iter().all(|r| r.total_density.is_finite() && r.outflow >= 0.0));
         }
     }
 }

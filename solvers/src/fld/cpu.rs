@@ -13,8 +13,9 @@
 //! Per voxel and pass (FLD Algorithm 1): R by Eqs 34–35, D_p by Eq 33, D_ps = (D_p + D_s)/2,
 //! φ'_p by Eq 32, SOR by Eq 36, residual by Eq 37 (before the update; see [`super`]).
 
-use super::{Boundary, FldConfig, FldSolution, FluxLimiter, KnudsenSigma, Status};
+use super::{Boundary, FldConfig, FldSolution, FluxLimiter, KnudsenSigma};
 use crate::gpu::Timer;
+use crate::method::Stop;
 use crate::{Grid, Medium, Real, SolverError};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -286,34 +287,34 @@ impl<T: Real> CpuFld<T> {
     /// (for progress bars and residual plots).
     pub fn solve_observed(mut self, mut observer: impl FnMut(usize, f64)) -> FldSolution<T> {
         let t0 = Instant::now();
-        let mut status = Status::MaxIterations;
+        let mut status = Stop::Cap;
         if self.trivial {
-            status = Status::Converged;
+            status = Stop::Converged;
         } else {
             while self.iterations < self.config.max_iterations {
                 let r = self.iterate();
                 observer(self.iterations, r);
                 if !r.is_finite() {
-                    status = Status::NonFinite;
+                    status = Stop::NonFinite;
                     break;
                 }
                 if r < self.tolerance {
-                    status = Status::Converged;
+                    status = Stop::Converged;
                     break;
                 }
             }
         }
         let seconds = t0.elapsed().as_secs_f64();
-        FldSolution {
-            grid: self.grid,
-            phi: self.phi(),
-            residuals: std::mem::take(&mut self.residuals),
-            iterations: self.iterations,
+        super::solution(
+            self.grid,
+            self.phi(),
+            std::mem::take(&mut self.residuals),
+            self.iterations,
             status,
             seconds,
-            setup_seconds: self.setup_seconds,
-            timer: Timer::WallClock,
-        }
+            self.setup_seconds,
+            Timer::WallClock,
+        )
     }
 
     /// The current φ in natural layout (x fastest), in the caller's units.

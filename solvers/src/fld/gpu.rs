@@ -12,10 +12,11 @@
 //! between them; φ is read back once at the end.
 
 use super::cpu::CpuFld;
-use super::{Boundary, FldConfig, FldSolution, FluxLimiter, Status};
+use super::{Boundary, FldConfig, FldSolution, FluxLimiter};
 use crate::gpu::{
     GpuContext, GpuError, PassTimer, Timer, storage_buffer, storage_entry, uniform_entry,
 };
+use crate::method::Stop as Status;
 use crate::{Grid, Medium, SolverError};
 use bytemuck::{Pod, Zeroable};
 use std::time::Instant;
@@ -378,7 +379,7 @@ impl<'a> GpuFld<'a> {
             .min(self.check_every)
             .min((self.max_iterations - self.iterations).min(u32::MAX as usize) as u32);
         if n == 0 {
-            self.status = Some(Status::MaxIterations);
+            self.status = Some(Status::Cap);
             return Ok(&self.residuals[start..]);
         }
         // Moved out for the call (a default timer allocates nothing) and put back.
@@ -400,7 +401,7 @@ impl<'a> GpuFld<'a> {
         self.status = match done {
             1 => Some(Status::Converged),
             2 => Some(Status::NonFinite),
-            _ if self.iterations >= self.max_iterations => Some(Status::MaxIterations),
+            _ if self.iterations >= self.max_iterations => Some(Status::Cap),
             _ => None,
         };
         Ok(&self.residuals[start..])
@@ -461,16 +462,16 @@ impl<'a> GpuFld<'a> {
             Timer::GpuTimestamps => self.timer.seconds(),
             Timer::WallClock => wall,
         };
-        Ok(FldSolution {
-            grid: self.grid,
+        Ok(super::solution(
+            self.grid,
             phi,
-            residuals: self.residuals,
-            iterations: self.iterations,
-            status: self.status.unwrap_or(Status::MaxIterations),
+            self.residuals,
+            self.iterations,
+            self.status.unwrap_or(Status::Cap),
             seconds,
-            setup_seconds: self.setup_seconds,
+            self.setup_seconds,
             timer,
-        })
+        ))
     }
 
     /// As [`GpuFld::solve_observed`] without an observer.

@@ -53,12 +53,15 @@
 pub mod cpu;
 pub mod gpu;
 pub mod limiter;
+pub mod method;
 
 pub use cpu::CpuFld;
 pub use gpu::GpuFld;
 pub use limiter::FluxLimiter;
+pub use method::{CDA, FLD, FldMethod};
 
 use crate::gpu::Timer;
+use crate::method::{Solution, Stop};
 use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
 
 /// Which extinction enters the Knudsen number R = |∇φ|/(σ φ) and D = F(R)/σ.
@@ -242,16 +245,7 @@ pub fn solve(
     observer: impl FnMut(usize, f64),
 ) -> Result<FldSolution<f64>, SolverError> {
     fn widen<T: Real>(s: FldSolution<T>) -> FldSolution<f64> {
-        FldSolution {
-            grid: s.grid,
-            phi: s.phi.iter().map(|x| x.f()).collect(),
-            residuals: s.residuals,
-            iterations: s.iterations,
-            status: s.status,
-            seconds: s.seconds,
-            setup_seconds: s.setup_seconds,
-            timer: s.timer,
-        }
+        s.widen_with(|t| t)
     }
     match backend {
         Backend::Cpu(Precision::F64) => {
@@ -266,46 +260,55 @@ pub fn solve(
     }
 }
 
-/// Why a solve stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Status {
-    /// R̄/j̄ fell below the tolerance.
-    Converged,
-    /// The iteration cap was reached first.
-    MaxIterations,
-    /// The residual became NaN or infinite (never observed in the tests; reported, not hidden).
-    NonFinite,
-}
-
-/// The result of a diffusion solve.
-#[derive(Debug, Clone)]
-pub struct FldSolution<T> {
-    /// The grid φ lives on.
-    pub grid: Grid,
-    /// Fluence φ per voxel (x fastest), boundary layer included.
-    pub phi: Vec<T>,
+/// FLD's part of a [`Solution`]: the residual history.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FldTrace {
     /// Normalised RMS residual R̄/j̄ after each iteration (index 0 = after iteration 1).
     pub residuals: Vec<f64>,
-    /// Iterations run.
-    pub iterations: usize,
-    /// Why it stopped.
-    pub status: Status,
-    /// Wall-clock seconds of the iterations (setup excluded).
-    pub seconds: f64,
-    /// Wall-clock seconds of setup (packing the medium; GPU: also uploads and pipelines).
-    pub setup_seconds: f64,
-    /// How `seconds` was measured.
-    pub timer: Timer,
 }
 
-impl<T> FldSolution<T> {
-    /// Whether the tolerance was reached.
-    pub fn converged(&self) -> bool {
-        self.status == Status::Converged
+/// The result of a diffusion solve: φ, iterations ([`Solution::steps`]), why it stopped,
+/// and the residual history in [`Solution::trace`].
+pub type FldSolution<T> = Solution<T, FldTrace>;
+
+impl<T> Solution<T, FldTrace> {
+    /// The normalised residual after each iteration.
+    pub fn residuals(&self) -> &[f64] {
+        &self.trace.residuals
     }
 
     /// The last normalised residual (∞ if no iteration ran).
     pub fn final_residual(&self) -> f64 {
-        self.residuals.last().copied().unwrap_or(f64::INFINITY)
+        self.trace
+            .residuals
+            .last()
+            .copied()
+            .unwrap_or(f64::INFINITY)
+    }
+}
+
+/// Assembles a solution (CPU and GPU kernels): `last_change` is the final residual.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn solution<T>(
+    grid: Grid,
+    phi: Vec<T>,
+    residuals: Vec<f64>,
+    iterations: usize,
+    stop: Stop,
+    seconds: f64,
+    setup_seconds: f64,
+    timer: Timer,
+) -> FldSolution<T> {
+    Solution {
+        grid,
+        phi,
+        steps: iterations,
+        last_change: residuals.last().copied().unwrap_or(f64::INFINITY),
+        stop,
+        seconds,
+        setup_seconds,
+        timer,
+        balance: None,
+        trace: FldTrace { residuals },
     }
 }

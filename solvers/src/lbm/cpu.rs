@@ -17,9 +17,10 @@
 //! bit-identical for any thread count.
 
 use super::{
-    Absorption, C, Injection, LbmConfig, LbmSolution, Q, Scattering, Status, StepRecord, W, speed,
+    Absorption, C, Injection, LbmConfig, LbmSolution, LbmTrace, Q, Scattering, StepRecord, W, speed,
 };
 use crate::gpu::Timer;
+use crate::method::Stop as Status;
 use crate::{Grid, Medium, Real, SolverError};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -472,7 +473,7 @@ impl<T: Real> CpuLbm<T> {
     pub fn solve_observed(mut self, mut observer: impl FnMut(usize, f64)) -> LbmSolution<T> {
         let t0 = Instant::now();
         let tol = self.setup.tolerance;
-        let mut status = Status::MaxSteps;
+        let mut status = Status::Cap;
         let mut prev = f64::NAN;
         while self.steps < self.setup.max_steps {
             let rec = self.step();
@@ -483,25 +484,28 @@ impl<T: Real> CpuLbm<T> {
                 break;
             }
             if steady(prev, t, 1, tol) {
-                status = Status::Steady;
+                status = Status::Converged;
                 break;
             }
             prev = t;
         }
         let seconds = t0.elapsed().as_secs_f64();
         let (phi, rho) = self.setup.fields(&self.state);
-        LbmSolution {
-            grid: self.setup.grid,
-            phi,
+        let trace = LbmTrace {
             rho,
-            steps: self.steps,
             history: self.history,
-            status,
             clamped_sites: self.setup.clamped,
+        };
+        super::solution(
+            self.setup.grid,
+            phi,
+            trace,
+            self.steps,
+            status,
             seconds,
-            setup_seconds: self.setup.setup_seconds,
-            timer: Timer::WallClock,
-        }
+            self.setup.setup_seconds,
+            Timer::WallClock,
+        )
     }
 
     /// φ (physical units) and ρ (lattice units) of the current state, natural layout.

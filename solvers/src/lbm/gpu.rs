@@ -10,10 +10,11 @@
 //! The state is read back once at the end, and φ is formed on the host by the CPU code.
 
 use super::cpu::{Setup, steady};
-use super::{Injection, LbmConfig, LbmSolution, Q, Status, StepRecord};
+use super::{Injection, LbmConfig, LbmSolution, LbmTrace, Q, StepRecord};
 use crate::gpu::{
     GpuContext, GpuError, PassTimer, Timer, storage_buffer, storage_entry, uniform_entry,
 };
+use crate::method::Stop as Status;
 use crate::{Grid, Medium, SolverError};
 use bytemuck::{Pod, Zeroable};
 use std::time::Instant;
@@ -354,7 +355,7 @@ impl<'a> GpuLbm<'a> {
         let t0 = Instant::now();
         let tol = self.setup.tolerance;
         let max = self.setup.max_steps;
-        let mut status = Status::MaxSteps;
+        let mut status = Status::Cap;
         let mut prev = f64::NAN;
         while self.steps < max {
             let k = (max - self.steps).min(self.check_every as usize) as u32;
@@ -366,7 +367,7 @@ impl<'a> GpuLbm<'a> {
                 break;
             }
             if steady(prev, t, k as usize, tol) {
-                status = Status::Steady;
+                status = Status::Converged;
                 break;
             }
             prev = t;
@@ -375,21 +376,25 @@ impl<'a> GpuLbm<'a> {
         let state = self.state()?;
         let (phi, rho) = self.setup.fields(&state);
         let timer = self.timer.timer();
-        Ok(LbmSolution {
-            grid: self.setup.grid,
-            phi,
+        let seconds = match timer {
+            Timer::GpuTimestamps => self.timer.seconds(),
+            Timer::WallClock => wall,
+        };
+        let trace = LbmTrace {
             rho,
-            steps: self.steps,
             history: self.history,
-            status,
             clamped_sites: self.setup.clamped,
-            seconds: match timer {
-                Timer::GpuTimestamps => self.timer.seconds(),
-                Timer::WallClock => wall,
-            },
-            setup_seconds: self.setup.setup_seconds,
+        };
+        Ok(super::solution(
+            self.setup.grid,
+            phi,
+            trace,
+            self.steps,
+            status,
+            seconds,
+            self.setup.setup_seconds,
             timer,
-        })
+        ))
     }
 
     /// As [`GpuLbm::solve_observed`] without an observer.

@@ -88,11 +88,14 @@
 
 pub mod cpu;
 pub mod gpu;
+pub mod method;
 
 pub use cpu::CpuLbm;
 pub use gpu::GpuLbm;
+pub use method::{LBM, LbmMethod};
 
 use crate::gpu::Timer;
+use crate::method::{Balance, Solution, Stop};
 use crate::scene::{Light, Phase, Scene};
 use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
 
@@ -561,17 +564,6 @@ impl LbmConfig {
     }
 }
 
-/// Why a solve stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Status {
-    /// The relative change of the total density per step fell below the tolerance.
-    Steady,
-    /// The step cap was reached first.
-    MaxSteps,
-    /// The total density became NaN or infinite.
-    NonFinite,
-}
-
 /// Lattice totals after one step (CPU: every step; GPU: at checkpoints). All in density
 /// units (power, see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -588,56 +580,78 @@ pub struct StepRecord {
     pub absorbed: f64,
 }
 
-/// The result of a lattice-Boltzmann solve.
-#[derive(Debug, Clone)]
-pub struct LbmSolution<T> {
-    /// The grid.
-    pub grid: Grid,
-    /// Voxel-averaged fluence φ in physical units (power per area), x fastest.
-    pub phi: Vec<T>,
+/// LB's part of a [`Solution`]: the lattice density, the per-step totals and the clamp count.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LbmTrace<T> {
     /// Total site density ρ (LB Section 3; lattice units, power per site), x fastest.
     pub rho: Vec<T>,
-    /// Steps run.
-    pub steps: usize,
     /// Totals per step (CPU) or per checkpoint (GPU).
     pub history: Vec<StepRecord>,
-    /// Why it stopped.
-    pub status: Status,
     /// Sites whose σt Δl exceeded 1 and was clamped ([`SigmaMapping::Linear`] only).
     pub clamped_sites: usize,
-    /// Seconds of the steps (setup excluded).
-    pub seconds: f64,
-    /// Seconds of setup.
-    pub setup_seconds: f64,
-    /// How `seconds` was measured.
-    pub timer: Timer,
 }
 
-impl<T> LbmSolution<T> {
-    /// Whether the steady-state tolerance was reached.
-    pub fn steady(&self) -> bool {
-        self.status == Status::Steady
-    }
+/// The result of a lattice-Boltzmann solve: voxel-averaged fluence φ in physical units
+/// (power per area), lattice steps ([`Solution::steps`]), why it stopped, and the lattice
+/// density and totals in [`Solution::trace`]. [`Stop::Converged`] means the relative change
+/// of the total density per step fell below the tolerance.
+pub type LbmSolution<T> = Solution<T, LbmTrace<T>>;
 
+impl<T> Solution<T, LbmTrace<T>> {
     /// The last record, if any step ran.
     pub fn last(&self) -> Option<&StepRecord> {
-        self.history.last()
+        self.trace.history.last()
+    }
+
+    /// The totals per step (CPU) or per checkpoint (GPU).
+    pub fn history(&self) -> &[StepRecord] {
+        &self.trace.history
+    }
+}
+
+/// Assembles a solution (CPU and GPU kernels). `last_change` is the relative change of the
+/// total density between the last two records (steps on the CPU, checkpoints on the GPU);
+/// NaN with fewer than two.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn solution<T>(
+    grid: Grid,
+    phi: Vec<T>,
+    trace: LbmTrace<T>,
+    steps: usize,
+    stop: Stop,
+    seconds: f64,
+    setup_seconds: f64,
+    timer: Timer,
+) -> LbmSolution<T> {
+    let last_change = match trace.history.as_slice() {
+        [.., a, b] => ((b.total_density - a.total_density) / b.total_density).abs(),
+        _ => f64::NAN,
+    };
+    let balance = trace.history.last().map(|r| Balance {
+        source: r.injected,
+        outflow: r.outflow,
+        absorbed: r.absorbed,
+    });
+    Solution {
+        grid,
+        phi,
+        steps,
+        last_change,
+        stop,
+        seconds,
+        setup_seconds,
+        timer,
+        balance,
+        trace,
     }
 }
 
 fn widen<T: Real>(s: LbmSolution<T>) -> LbmSolution<f64> {
-    LbmSolution {
-        grid: s.grid,
-        phi: s.phi.iter().map(|x| x.f()).collect(),
-        rho: s.rho.iter().map(|x| x.f()).collect(),
-        steps: s.steps,
-        history: s.history,
-        status: s.status,
-        clamped_sites: s.clamped_sites,
-        seconds: s.seconds,
-        setup_seconds: s.setup_seconds,
-        timer: s.timer,
-    }
+    s.widen_with(|t| LbmTrace {
+        rho: t.rho.iter().map(|x| x.f()).collect(),
+        history: t.history,
+        clamped_sites: t.clamped_sites,
+    })
 }
 
 /// Solves on any [`Backend`]: the medium is given in `f64` and packed in the backend's

@@ -2,8 +2,9 @@
 //!
 //! 1. **Light baking** ([`bake`]): per directional or point light a deep shadow map and the
 //!    source q_ri = σs·L_ri (FLD Eq 6). CPU (rayon).
-//! 2. **Multiple scattering** (`diffusion_solve`): CDA or FLD ([`crate::fld::solve`], on the
-//!    caller's [`Backend`]: CPU f32/f64 or GPU) for φ with source q_ri + j, on the grid
+//! 2. **Multiple scattering** (`diffusion_solve`): any registered [`crate::Method`]
+//!    ([`PipelineConfig::method`]: CDA, FLD, LBM, …, on the caller's [`Backend`]: CPU f32/f64
+//!    or GPU) for φ with source q_ri + j, on the grid
 //!    restricted by [`PipelineConfig::downsample`] (the paper uses 4; see [`restrict`] for
 //!    the conservative restriction) and padded by [`PipelineConfig::pad`] vacuum voxels.
 //! 3. **Primary raymarch** ([`raymarch`], FLD Eq 3 with the source of FLD Eq 8): single
@@ -24,8 +25,10 @@
 //! order-0 emission. `total` is their sum. Images are radiance in physical units
 //! (power per area per steradian), row-major, top-left first.
 //!
-//! **Anisotropy.** Only single scattering sees the phase function; the diffusion is
-//! isotropic, with the medium as given (no similarity scaling), as in the paper.
+//! **Anisotropy.** Single scattering sees the phase function. The multiple-scattering pass
+//! sees it only if its method says so ([`crate::method::Capabilities::anisotropic`]: LBM);
+//! CDA and FLD scatter isotropically with the medium as given (no similarity scaling), as in
+//! the paper. The plan's `diffusion_solve` records which.
 
 pub mod bake;
 pub mod geometry;
@@ -36,15 +39,14 @@ pub mod restrict;
 
 pub use planner::{Pass, Plan, Planned, Skipped};
 
-use crate::fld::{Boundary, FldConfig, FluxLimiter, Status};
+use crate::fld::{FldMethod, FluxLimiter};
+use crate::method::{MethodRef, Problem, Stop, Tolerance};
 use crate::scene::{EffectSelection, Effects, EffectsError, Scene, SceneFile};
 use crate::{Backend, SolverError};
 use bake::BakedLight;
 pub use bake::Shadows;
 use raymarch::Term;
 use serde::Serialize;
-use std::fmt;
-use std::str::FromStr;
 use std::time::Instant;
 use thiserror::Error;
 
@@ -70,85 +72,38 @@ pub enum PipelineError {
         /// Its kind.
         kind: &'static str,
     },
+    /// The chosen multiple-scattering method cannot render what the plan needs.
+    #[error("method {method} cannot {what}")]
+    MethodCannot {
+        /// The method's name.
+        method: String,
+        /// What it cannot do.
+        what: &'static str,
+    },
     /// No channels, or channels that differ in more than their medium's values.
     #[error("colour channels must be 1 or 3 scenes that differ only in their medium values: {0}")]
     Channels(String),
 }
 
-/// The multiple-scattering method.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum DiffusionMethod {
-    /// Classical diffusion.
-    Cda,
-    /// Flux-limited diffusion with this limiter.
-    Fld(FluxLimiter),
-    /// Lattice-Boltzmann lighting ([`crate::lbm`]) in its transport configuration
-    /// ([`LbmConfig::transport`](crate::lbm::LbmConfig::transport): absorbed light leaves,
-    /// renormalised HG with the scene's phase function). The same restricted medium and
-    /// source q_ri + j as the diffusion solve enter as an isotropic volume source, so φ is,
-    /// as for CDA and FLD, the fluence of light scattered at least once. Its tolerance is
-    /// the relative change of the total lattice density per step,
-    /// [`FldConfig::tolerance`] × 10⁻² (the diffusion default 10⁻⁴ gives 10⁻⁶).
-    Lbm,
-}
-
-impl fmt::Display for DiffusionMethod {
-    /// `cda` or `fld:<limiter>` (e.g. `fld:lp`).
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            DiffusionMethod::Cda => write!(f, "cda"),
-            DiffusionMethod::Fld(l) => write!(f, "fld:{l}"),
-            DiffusionMethod::Lbm => write!(f, "lbm"),
-        }
-    }
-}
-
-impl FromStr for DiffusionMethod {
-    type Err = SolverError;
-    /// `cda`, `fld` (Levermore–Pomraning, the paper's choice), `fld:<limiter>` or `lbm`.
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s.trim() {
-            "cda" => Ok(DiffusionMethod::Cda),
-            "lbm" => Ok(DiffusionMethod::Lbm),
-            "fld" => Ok(DiffusionMethod::Fld(FluxLimiter::LevermorePomraning)),
-            t => match t.strip_prefix("fld:") {
-                Some(l) => Ok(DiffusionMethod::Fld(l.parse()?)),
-                None => Err(SolverError::Unsupported(format!(
-                    "unknown method `{t}`; expected cda, fld, fld:<limiter> or lbm"
-                ))),
-            },
-        }
-    }
-}
-
-impl DiffusionMethod {
-    /// The flux limiter of the solve (CDA and LBM: the constant 1/3, unused by LBM).
-    pub fn limiter(&self) -> FluxLimiter {
-        match self {
-            DiffusionMethod::Cda | DiffusionMethod::Lbm => FluxLimiter::Cda,
-            DiffusionMethod::Fld(l) => *l,
-        }
-    }
-}
-
 /// Settings of a render.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PipelineConfig {
-    /// CDA or FLD.
-    pub method: DiffusionMethod,
+    /// The multiple-scattering method (any of [`crate::method::METHODS`]; default FLD with
+    /// the Levermore–Pomraning limiter and ω = 1.8).
+    pub method: MethodRef,
     /// Grid downsampling factor of the diffusion solve (≥ 1; the paper's is 4).
     pub downsample: usize,
     /// Vacuum voxels added around the restricted grid (its outermost layer is the Dirichlet
     /// φ = 0 boundary). Default 1.
     pub pad: usize,
-    /// Solver settings; its `limiter` is replaced by `method`'s. Default: ω = 1.8,
-    /// R̄/j̄ < 10⁻⁴ (the paper's stopping level for its renderings, FLD Section 6.2), at most
-    /// 20 000 iterations (a solve that stops there is reported in
-    /// [`Rendered::diffusion`], not an error). Measured at downsample 4 (18³ solve grids):
-    /// ω = 1.0 / 1.5 / 1.8 took 372 / 189 / 150 iterations on `nebula`, and on `shell_core`
-    /// (vacuum between a dense core and a shell) 20 000 (stalled at 6·10⁻²) / 20 000
-    /// (5.6·10⁻³) / 16 125.
-    pub fld: FldConfig,
+    /// When the multiple-scattering solve stops ([`Tolerance`], one meaning for every
+    /// method). Default: R̄/j̄ < 10⁻⁴ (the paper's stopping level for its renderings, FLD
+    /// Section 6.2), at most 20 000 steps (a solve that stops there is reported in
+    /// [`Rendered::diffusion`], not an error). FLD's default ω = 1.8 was measured at
+    /// downsample 4 (18³ solve grids): ω = 1.0 / 1.5 / 1.8 took 372 / 189 / 150 iterations on
+    /// `nebula`, and on `shell_core` (vacuum between a dense core and a shell) 20 000 (stalled
+    /// at 6·10⁻²) / 20 000 (5.6·10⁻³) / 16 125.
+    pub tolerance: Tolerance,
     /// Raymarch sub-step as a fraction of the voxel edge Δl (default 0.5).
     pub step: f64,
     /// Stratified ray positions per pixel and axis (default 1: the pixel centre).
@@ -163,13 +118,10 @@ pub struct PipelineConfig {
 impl Default for PipelineConfig {
     fn default() -> Self {
         Self {
-            method: DiffusionMethod::Fld(FluxLimiter::LevermorePomraning),
+            method: MethodRef::new(Box::new(FldMethod::new(FluxLimiter::LevermorePomraning))),
             downsample: 4,
             pad: 1,
-            fld: FldConfig::default()
-                .with_omega(1.8)
-                .with_tolerance(1e-4)
-                .with_max_iterations(20_000),
+            tolerance: Tolerance::default(),
             step: 0.5,
             pixel_samples: 1,
             effects: EffectSelection::all(),
@@ -205,7 +157,7 @@ impl PipelineConfig {
             }
             .into());
         }
-        self.fld.validate()?;
+        self.tolerance.validate()?;
         Ok(())
     }
 }
@@ -243,14 +195,18 @@ pub struct DiffusionRecord {
     pub grid: [usize; 3],
     /// Its voxel edge.
     pub dl: f64,
-    /// Iterations run.
-    pub iterations: usize,
-    /// Final normalised residual R̄/j̄.
-    pub final_residual: f64,
-    /// `converged`, `max_iterations` or `non_finite`.
-    pub status: String,
-    /// Seconds of the iterations (solver's own timer).
+    /// The method ([`crate::Method::name`]).
+    pub method: String,
+    /// Steps run (FLD iterations, LB lattice steps).
+    pub steps: usize,
+    /// The method's last convergence measure ([`crate::Solution::last_change`]).
+    pub last_change: f64,
+    /// Why it stopped: `converged`, `cap` or `non_finite`.
+    pub stop: Stop,
+    /// Seconds of the steps (solver's own timer).
     pub solve_seconds: f64,
+    /// Seconds of the solver's setup.
+    pub setup_seconds: f64,
     /// Backend, e.g. `cpu-f64`.
     pub backend: String,
 }
@@ -344,7 +300,7 @@ pub fn plan_channels(
         &channels[0].lights,
         &implied,
         &effects,
-        &config.method.to_string(),
+        config.method.get(),
         config.downsample,
     )
 }
@@ -400,36 +356,30 @@ pub fn render_channels(
                             .for_each(|(q, j)| *q += j);
                     }
                     let coarse = restrict::restrict(medium, &q, *downsample, config.pad)?;
-                    let (record, solved) = if config.method == DiffusionMethod::Lbm {
-                        lbm_solve(backend, &coarse, scene.phase, config)?
-                    } else {
-                        let fld = FldConfig {
-                            limiter: config.method.limiter(),
-                            ..config.fld.clone()
-                        };
-                        let sol =
-                            crate::fld::solve(backend, &coarse, &Boundary::Zero, &fld, |_, _| {})?;
-                        let status = match sol.status {
-                            Status::Converged => "converged",
-                            Status::MaxIterations => "max_iterations",
-                            Status::NonFinite => "non_finite",
-                        };
-                        (
-                            (sol.iterations, sol.final_residual(), status, sol.seconds),
-                            sol.phi,
-                        )
+                    let problem = Problem {
+                        medium: &coarse,
+                        lights: &scene.lights,
+                        phase,
                     };
-                    let (iterations, final_residual, status, solve_seconds) = record;
+                    let sol = config.method.solve(
+                        backend,
+                        &problem,
+                        &config.tolerance,
+                        &mut |_, _| {},
+                    )?;
                     diffusion.push(DiffusionRecord {
                         channel: c,
                         grid: coarse.grid.n,
                         dl: coarse.grid.dl,
-                        iterations,
-                        final_residual,
-                        status: status.into(),
-                        solve_seconds,
+                        method: config.method.name(),
+                        steps: sol.steps,
+                        last_change: sol.last_change,
+                        stop: sol.stop,
+                        solve_seconds: sol.seconds,
+                        setup_seconds: sol.setup_seconds,
                         backend: backend.to_string(),
                     });
+                    let solved = sol.phi;
                     phi = Some((coarse.grid, solved));
                 }
                 Pass::RaymarchSingle { lights, .. } => {
@@ -501,35 +451,6 @@ pub fn render_channels(
         passes_run,
         diffusion,
     })
-}
-
-/// The LBM multiple-scattering solve (see [`DiffusionMethod::Lbm`]): ((steps, last
-/// relative change, status, seconds), φ).
-type SolveRecord = ((usize, f64, &'static str, f64), Vec<f64>);
-
-fn lbm_solve(
-    backend: &Backend<'_>,
-    coarse: &crate::Medium<f64>,
-    phase: crate::scene::Phase,
-    config: &PipelineConfig,
-) -> Result<SolveRecord, PipelineError> {
-    use crate::lbm;
-    let mut cfg = lbm::LbmConfig::transport();
-    cfg.phase = phase;
-    cfg.tolerance = Some(config.fld.tolerance.unwrap_or(1e-4) * 1e-2);
-    let sol = lbm::solve(backend, coarse, &lbm::Injection::none(), &cfg, |_, _| {})?;
-    // Relative change of the total density between the last two records (steps on the
-    // CPU, checkpoints on the GPU).
-    let change = match sol.history.as_slice() {
-        [.., a, b] => ((b.total_density - a.total_density) / b.total_density).abs(),
-        _ => f64::NAN,
-    };
-    let status = match sol.status {
-        lbm::Status::Steady => "converged",
-        lbm::Status::MaxSteps => "max_iterations",
-        lbm::Status::NonFinite => "non_finite",
-    };
-    Ok(((sol.steps, change, status, sol.seconds), sol.phi))
 }
 
 fn check_channels(channels: &[Scene]) -> Result<(), PipelineError> {

@@ -13,6 +13,7 @@
 //! An empty plan renders a black image without running anything.
 
 use super::PipelineError;
+use crate::method::{LightInput, Method};
 use crate::scene::{Effect, Effects, Light};
 use serde::Serialize;
 use std::fmt::Write;
@@ -31,16 +32,21 @@ pub enum Pass {
         /// Light index.
         light: usize,
     },
-    /// The diffusion solve for φ (FLD Eq 12 / Eq 20).
+    /// The multiple-scattering solve for φ (FLD Eq 12 / Eq 20, or any other registered
+    /// [`Method`]).
     DiffusionSolve {
-        /// `cda` or `fld:<limiter>`.
+        /// [`Method::name`], e.g. `cda`, `fld:lp`, `lbm`.
         method: String,
         /// Downsampling factor of the grid.
         downsample: usize,
         /// Whether j is part of the source (emission in the set).
         with_emission: bool,
-        /// Lights whose q_ri is part of the source.
+        /// Lights whose q_ri is part of the source (or, for a method that takes lights
+        /// itself, the lights it is given).
         lights: Vec<usize>,
+        /// Whether the method sees the scene's phase function (its capability, and
+        /// anisotropy in the effect set).
+        anisotropic: bool,
     },
     /// Primary raymarch of single scattering.
     RaymarchSingle {
@@ -111,17 +117,27 @@ fn kind(l: &Light) -> &'static str {
 }
 
 /// Plans the passes that render `effects` (a restriction of `implied`) for a scene with
-/// these `lights`; `method` and `downsample` describe the diffusion solve.
+/// these `lights`; `method` (read through its [`Method::capabilities`]) and `downsample`
+/// describe the multiple-scattering solve.
 pub fn plan(
     lights: &[Light],
     implied: &Effects,
     effects: &Effects,
-    method: &str,
+    method: &dyn Method,
     downsample: usize,
 ) -> Result<Plan, PipelineError> {
+    let caps = method.capabilities();
     let ss = effects.single_scattering_lights();
     let ms = effects.contains(Effect::MultipleScattering);
     let emission = effects.contains(Effect::Emission);
+    if ms && emission && !caps.volume_source {
+        return Err(PipelineError::MethodCannot {
+            method: method.name(),
+            what: "multiply scatter volume emission (it takes no volume source); exclude `multiple` or `emission`, or choose another method",
+        });
+    }
+    // Lights enter the multiple-scattering solve as baked q_ri unless the method takes them.
+    let baked_for_ms = ms && caps.lights == LightInput::Baked;
     let why_not = |e: Effect, what: &str| -> String {
         if implied.contains(e) {
             format!("{what} is excluded by the effect selection")
@@ -135,7 +151,7 @@ pub fn plan(
     for (i, light) in lights.iter().enumerate() {
         let for_ss = ss.contains(&i);
         let name = format!("bake_{}[{i}]", kind(light));
-        if !for_ss && !ms {
+        if !for_ss && !baked_for_ms {
             let why = if !implied.contains(Effect::SingleScattering { light: i }) {
                 "nothing scatters, so the light is never seen".to_string()
             } else {
@@ -156,7 +172,7 @@ pub fn plan(
                 });
             }
         };
-        let why = match (for_ss, ms) {
+        let why = match (for_ss, baked_for_ms) {
             (true, true) => format!(
                 "single scattering of light {i} is rendered and its q_ri sources multiple scattering"
             ),
@@ -169,22 +185,39 @@ pub fn plan(
     }
     if ms {
         let mut src = Vec::new();
-        if !baked.is_empty() {
-            src.push(format!("q_ri of light(s) {baked:?}"));
-        }
+        let direct: Vec<usize> = (0..lights.len()).collect();
+        let ms_lights = if caps.lights == LightInput::Baked {
+            if !baked.is_empty() {
+                src.push(format!("q_ri of light(s) {baked:?}"));
+            }
+            baked.clone()
+        } else {
+            if !direct.is_empty() {
+                src.push(format!("light(s) {direct:?} taken by the method itself"));
+            }
+            direct
+        };
         if emission {
             src.push("the emission j".into());
         }
+        let anisotropic = caps.anisotropic && effects.contains(Effect::Anisotropy);
         passes.push(Planned {
             pass: Pass::DiffusionSolve {
-                method: method.to_string(),
+                method: method.name(),
                 downsample,
                 with_emission: emission,
-                lights: baked.clone(),
+                lights: ms_lights,
+                anisotropic,
             },
             why: format!(
-                "multiple scattering is rendered: φ from {} on a grid downsampled {downsample}x",
-                src.join(" + ")
+                "multiple scattering is rendered: φ from {} on a grid downsampled {downsample}x by {}, {}",
+                src.join(" + "),
+                method.name(),
+                if anisotropic {
+                    "with the scene's phase function"
+                } else {
+                    "scattering isotropically with σs as given"
+                }
             ),
         });
     } else {

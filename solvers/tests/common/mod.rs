@@ -5,6 +5,8 @@
 //! "<test>: skipped: no GPU adapter" and passes, unless `SCATTERBENCH_REQUIRE_GPU=1` (CI),
 //! which makes them fail.
 
+pub mod methods;
+
 use solvers::gpu::GpuContext;
 use solvers::{Backend, Precision};
 use std::sync::{Mutex, OnceLock};

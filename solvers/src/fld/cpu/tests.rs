@@ -272,7 +272,7 @@ fn fld_solution_is_mirror_symmetric() {
             .with_tolerance(1e-11)
             .with_max_iterations(20_000);
         let sol = CpuFld::new(&m, &Boundary::Zero, &cfg).unwrap().solve();
-        assert!(sol.converged(), "{:?} after {}", sol.status, sol.iterations);
+        assert!(sol.converged(), "{:?} after {}", sol.stop, sol.steps);
         let max = sol.phi.iter().fold(0.0f64, |a, &b| a.max(b));
         for idx in 0..g.len() {
             let [i, j, k] = g.coords(idx);
@@ -410,7 +410,7 @@ fn no_source_and_zero_boundary_is_exactly_zero() {
         .unwrap()
         .solve();
     assert!(sol.converged());
-    assert_eq!(sol.iterations, 0);
+    assert_eq!(sol.steps, 0);
     assert!(sol.phi.iter().all(|&x| x == 0.0));
 }
 

@@ -1,0 +1,521 @@
+//! One interface for every multiple-scattering method, and one registry of them.
+//!
+//! A method solves one kind of [`Problem`]: a medium on its solve grid (restricted and padded
+//! by the pipeline), whose `emission` field is the volume source q (power per unit volume:
+//! q_ri = σs·L_ri of the baked lights, FLD Eq 6, plus the emission j if it is rendered), the
+//! scene's lights (for methods that take lights themselves) and its phase function. It returns
+//! one [`Solution`]: the fluence φ on that grid with the steps it took, its last convergence
+//! measure, why it stopped ([`Stop`]) and its timings.
+//!
+//! [`METHODS`] lists every method family. Everything that offers a choice of method reads it:
+//! the pipeline's multiple-scattering pass ([`crate::pipeline`]), the planner (from
+//! [`Method::capabilities`]), `render --method`, `renderings --methods`, the accuracy atlas,
+//! the benches and the generic conformance suite (`solvers/tests/conformance.rs`,
+//! `method_conformance!`). Adding a method is its module folder plus one line here.
+//!
+//! ## Names
+//! A method is named `family[:variant]`, case-insensitive: `cda`, `fld` (= `fld:lp`, the
+//! paper's Levermore–Pomraning limiter), `fld:<limiter>`, `lbm`. [`parse`] turns a name
+//! into a method with the family's defaults; [`parse_with`] also takes named numeric
+//! parameters (`omega=1.5`), each family listing those it accepts
+//! ([`MethodFamily::params`]); an unknown name or parameter is a typed
+//! [`SolverError::UnknownName`] that lists what exists.
+//!
+//! ## One tolerance
+//! [`Tolerance::rel`] is the stopping level of the method's own convergence measure, which
+//! is its [`Solution::last_change`]; each family states how it maps `rel` (FLD: the
+//! normalised residual R̄/j̄ < rel, FLD Eq 37; LBM: the relative change of the total lattice
+//! density per step < rel·10⁻², the mapping the pipeline has used since LBM joined it, see
+//! [`crate::lbm::method`]). At the same `rel` the methods stop well inside their own
+//! discretisation error: in the committed atlas (`results/accuracy_cost/points.csv`, nebula at
+//! downsample 4, f32) the image error changes between rel = 10⁻³ and 10⁻⁴ by 3·10⁻⁶ (LBM,
+//! 0.124906 → 0.124910), 1·10⁻⁶ (CDA) and 7·10⁻⁶ (FLD-LP, 0.241700 → 0.241692), while the
+//! methods differ from each other by 0.1–0.4. [`Tolerance::max_steps`] caps the steps of
+//! every method; a
+//! solve that stops there reports [`Stop::Cap`], not an error.
+
+use crate::gpu::Timer;
+use crate::scene::{Light, Phase};
+use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
+use serde::Serialize;
+use std::fmt;
+use std::sync::Arc;
+
+/// The input of a multiple-scattering solve.
+#[derive(Debug, Clone, Copy)]
+pub struct Problem<'a> {
+    /// σt and albedo on the solve grid; its `emission` is the volume source q (power per
+    /// unit volume). The outermost voxel layer is the boundary of grid methods.
+    pub medium: &'a Medium<f64>,
+    /// The scene's lights, in the medium's frame. Read only by methods whose
+    /// [`Capabilities::lights`] is [`LightInput::Direct`]; for the others the pipeline has
+    /// baked them into the source.
+    pub lights: &'a [Light],
+    /// The phase function (read by methods with [`Capabilities::anisotropic`]).
+    pub phase: Phase,
+}
+
+/// When a solve stops; one meaning for every method (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerance {
+    /// Stopping level of the method's convergence measure ([`Solution::last_change`]).
+    /// 0 runs exactly `max_steps` steps.
+    pub rel: f64,
+    /// Step cap (iterations of FLD, lattice steps of LBM).
+    pub max_steps: usize,
+}
+
+impl Default for Tolerance {
+    /// R̄/j̄ < 10⁻⁴ (the paper's level for its renderings, FLD Section 6.2), at most 20 000
+    /// steps.
+    fn default() -> Self {
+        Self {
+            rel: 1e-4,
+            max_steps: 20_000,
+        }
+    }
+}
+
+impl Tolerance {
+    /// `rel` with the default step cap.
+    pub fn rel(rel: f64) -> Self {
+        Self {
+            rel,
+            ..Self::default()
+        }
+    }
+
+    /// Exactly `n` steps (no convergence test).
+    pub fn fixed_steps(n: usize) -> Self {
+        Self {
+            rel: 0.0,
+            max_steps: n,
+        }
+    }
+
+    /// Checks both fields.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        if !(self.rel.is_finite() && self.rel >= 0.0) {
+            return Err(SolverError::BadParameter {
+                name: "tolerance",
+                value: self.rel,
+                reason: "must be finite and ≥ 0",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Why a solve stopped (every method).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stop {
+    /// The convergence measure fell below the tolerance.
+    Converged,
+    /// The step cap was reached first.
+    Cap,
+    /// The solution or its convergence measure became NaN or infinite (reported, not hidden).
+    NonFinite,
+}
+
+impl fmt::Display for Stop {
+    /// `converged`, `cap` or `non_finite` (as in JSON).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Stop::Converged => "converged",
+            Stop::Cap => "cap",
+            Stop::NonFinite => "non_finite",
+        })
+    }
+}
+
+/// The result of a solve, for every method. `T` is the precision φ is held in; `E` holds what
+/// only one method has (FLD: the residual history; LBM: the lattice density and per-step
+/// totals); [`Fluence`] is the method-independent form [`Method::solve`] returns.
+#[derive(Debug, Clone)]
+pub struct Solution<T, E = ()> {
+    /// The grid φ lives on.
+    pub grid: Grid,
+    /// Fluence φ per voxel (power per unit area; x fastest), boundary layer included.
+    pub phi: Vec<T>,
+    /// Steps run (FLD iterations, LBM lattice steps).
+    pub steps: usize,
+    /// The method's convergence measure after the last step (FLD: R̄/j̄; LBM: the relative
+    /// change of the total lattice density per step); NaN if no step ran or it is unknown.
+    pub last_change: f64,
+    /// Why it stopped.
+    pub stop: Stop,
+    /// Wall-clock seconds of the steps (setup excluded; see `timer`).
+    pub seconds: f64,
+    /// Wall-clock seconds of setup (packing the medium; GPU: also uploads and pipelines).
+    pub setup_seconds: f64,
+    /// How `seconds` was measured.
+    pub timer: Timer,
+    /// Power balance of the last step, for methods that define an outflow (LBM); `None`
+    /// for the others.
+    pub balance: Option<Balance>,
+    /// Method-specific results.
+    pub trace: E,
+}
+
+/// Power per step of a method that tracks where light goes: what the source injected, what
+/// left the grid and what was absorbed. At steady state source = outflow + absorbed.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Balance {
+    /// Injected by the volume source (and boundary inflow).
+    pub source: f64,
+    /// Streamed out of the grid.
+    pub outflow: f64,
+    /// Absorbed.
+    pub absorbed: f64,
+}
+
+/// φ in f64 without method-specific extras: what [`Method::solve`] returns.
+pub type Fluence = Solution<f64>;
+
+impl<T, E> Solution<T, E> {
+    /// Whether the tolerance was reached.
+    pub fn converged(&self) -> bool {
+        self.stop == Stop::Converged
+    }
+
+    /// The same solution without its method-specific part.
+    pub fn erase(self) -> Solution<T> {
+        self.map_trace(|_| ())
+    }
+
+    /// Replaces the method-specific part.
+    pub fn map_trace<F>(self, f: impl FnOnce(E) -> F) -> Solution<T, F> {
+        Solution {
+            grid: self.grid,
+            phi: self.phi,
+            steps: self.steps,
+            last_change: self.last_change,
+            stop: self.stop,
+            seconds: self.seconds,
+            setup_seconds: self.setup_seconds,
+            timer: self.timer,
+            balance: self.balance,
+            trace: f(self.trace),
+        }
+    }
+}
+
+impl<T: Real, E> Solution<T, E> {
+    /// φ in f64; `f` widens the method-specific part.
+    pub fn widen_with<F>(self, f: impl FnOnce(E) -> F) -> Solution<f64, F> {
+        Solution {
+            grid: self.grid,
+            phi: self.phi.iter().map(|x| x.f()).collect(),
+            steps: self.steps,
+            last_change: self.last_change,
+            stop: self.stop,
+            seconds: self.seconds,
+            setup_seconds: self.setup_seconds,
+            timer: self.timer,
+            balance: self.balance,
+            trace: f(self.trace),
+        }
+    }
+}
+
+/// How a method receives the scene's lights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LightInput {
+    /// The pipeline bakes each light into the volume source q_ri = σs·L_ri (FLD Eq 6); φ is
+    /// the fluence of light scattered at least once.
+    Baked,
+    /// The method reads [`Problem::lights`] itself (propagation methods such as LPM, POP).
+    Direct,
+}
+
+/// What a method supports; the planner, the atlas and the conformance suite read this
+/// instead of knowing methods by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Capabilities {
+    /// Runs on [`Backend::Gpu`].
+    pub gpu: bool,
+    /// Runs on [`Backend::Cpu`] in f64 (f32 on the CPU is always supported).
+    pub f64: bool,
+    /// Takes a volume source ([`Problem::medium`]'s emission); without it, emission cannot
+    /// be multiply scattered by this method.
+    pub volume_source: bool,
+    /// Sees the phase function (otherwise it scatters isotropically with σs as given).
+    pub anisotropic: bool,
+    /// How it receives the lights.
+    pub lights: LightInput,
+    /// Defines an outflow whose balance with the source holds at albedo 1 (the conformance
+    /// suite's energy test runs when true).
+    pub conserves_energy: bool,
+}
+
+impl Capabilities {
+    /// Whether the method runs on `backend`.
+    pub fn supports(&self, backend: &Backend<'_>) -> bool {
+        match backend {
+            Backend::Gpu(_) => self.gpu,
+            Backend::Cpu(Precision::F64) => self.f64,
+            Backend::Cpu(Precision::F32) => true,
+        }
+    }
+}
+
+/// A multiple-scattering method with its settings.
+pub trait Method: fmt::Debug + Send + Sync {
+    /// Its name: `family[:variant]`, parseable by [`parse`] (e.g. `fld:lp`, `cda`, `lbm`).
+    fn name(&self) -> String;
+
+    /// What it supports.
+    fn capabilities(&self) -> Capabilities;
+
+    /// Solves `problem` on `backend` until `tolerance`. `observer(step, measure)` sees the
+    /// convergence measure as it is computed (every step on the CPU, every checkpoint on the
+    /// GPU). A backend the method does not support is [`SolverError::Unsupported`].
+    fn solve(
+        &self,
+        backend: &Backend<'_>,
+        problem: &Problem<'_>,
+        tolerance: &Tolerance,
+        observer: &mut dyn FnMut(usize, f64),
+    ) -> Result<Fluence, SolverError>;
+
+    /// Bytes one step reads and writes on `grid` in `precision` (the benches' bandwidth
+    /// figure).
+    fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize;
+}
+
+/// Named numeric parameters of a method (`omega=1.5`); a family consumes the ones it knows
+/// and rejects the rest.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Params(Vec<(String, f64)>);
+
+impl Params {
+    /// No parameters.
+    pub fn none() -> Self {
+        Self::default()
+    }
+
+    /// Builder: one more parameter (names are case-insensitive).
+    pub fn with(mut self, name: &str, value: f64) -> Self {
+        self.0.push((name.trim().to_ascii_lowercase(), value));
+        self
+    }
+
+    /// Parses `name=value` strings.
+    pub fn parse<'s>(items: impl IntoIterator<Item = &'s str>) -> Result<Self, SolverError> {
+        let mut p = Self::none();
+        for item in items {
+            let (k, v) = item
+                .split_once('=')
+                .ok_or_else(|| SolverError::UnknownName {
+                    what: "method parameter (expected name=value)",
+                    got: item.to_string(),
+                    known: String::new(),
+                })?;
+            let value: f64 = v.trim().parse().map_err(|_| SolverError::BadParameter {
+                name: "method parameter",
+                value: f64::NAN,
+                reason: "the value after `=` must be a number",
+            })?;
+            p = p.with(k, value);
+        }
+        Ok(p)
+    }
+
+    /// The value of `name`, if given.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.0
+            .iter()
+            .rev()
+            .find(|(k, _)| k == name)
+            .map(|(_, v)| *v)
+    }
+
+    /// Fails with [`SolverError::UnknownName`] if a parameter is not in `known`.
+    pub fn only(&self, family: &MethodFamily) -> Result<(), SolverError> {
+        match self
+            .0
+            .iter()
+            .find(|(k, _)| !family.params.iter().any(|(n, _)| n == k))
+        {
+            None => Ok(()),
+            Some((k, _)) => Err(SolverError::UnknownName {
+                what: "method parameter",
+                got: format!("{k} (method {})", family.name),
+                known: if family.params.is_empty() {
+                    "none".into()
+                } else {
+                    family
+                        .params
+                        .iter()
+                        .map(|(n, _)| *n)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                },
+            }),
+        }
+    }
+}
+
+/// How a family builds a method from its variant (`None` if no `:`) and parameters.
+pub type BuildFn =
+    fn(variant: Option<&str>, params: &Params) -> Result<Box<dyn Method>, SolverError>;
+
+/// A registered method family: its names, its paper and how to build it.
+#[derive(Debug)]
+pub struct MethodFamily {
+    /// Name before the `:` (lower case).
+    pub name: &'static str,
+    /// One line for `--help` and the README.
+    pub title: &'static str,
+    /// The paper and the equations it implements (cite as in the papers' index).
+    pub paper: &'static str,
+    /// The variants after the `:` (empty: none), for help texts.
+    pub variants: &'static str,
+    /// Named parameters it accepts, with a description each.
+    pub params: &'static [(&'static str, &'static str)],
+    /// Builds the method from its variant (`None` if no `:`) and parameters.
+    pub build: BuildFn,
+}
+
+/// Every method family. Add one line per family.
+pub static METHODS: &[MethodFamily] = &[crate::fld::CDA, crate::fld::FLD, crate::lbm::LBM];
+
+/// The names of every family, with their variants, for help texts and errors: `cda, fld[:…], lbm`.
+pub fn names() -> String {
+    METHODS
+        .iter()
+        .map(|f| {
+            if f.variants.is_empty() {
+                f.name.to_string()
+            } else {
+                format!("{}[:{}]", f.name, f.variants)
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The family registered under `name` (case-insensitive).
+pub fn family(name: &str) -> Option<&'static MethodFamily> {
+    let name = name.trim().to_ascii_lowercase();
+    METHODS.iter().find(|f| f.name == name)
+}
+
+/// A method by name with its family's defaults (see the module docs).
+pub fn parse(spec: &str) -> Result<Box<dyn Method>, SolverError> {
+    parse_with(spec, &Params::none())
+}
+
+/// A method by name with named parameters.
+pub fn parse_with(spec: &str, params: &Params) -> Result<Box<dyn Method>, SolverError> {
+    let spec = spec.trim().to_ascii_lowercase();
+    let (name, variant) = match spec.split_once(':') {
+        Some((n, v)) => (n, Some(v.trim())),
+        None => (spec.as_str(), None),
+    };
+    let fam = family(name).ok_or_else(|| SolverError::UnknownName {
+        what: "method",
+        got: spec.clone(),
+        known: names(),
+    })?;
+    params.only(fam)?;
+    (fam.build)(variant, params)
+}
+
+/// A shared, comparable handle on a method, for configurations that are `Clone` and
+/// `PartialEq` (two handles are equal when their methods have the same name and settings as
+/// far as [`Method::name`] and `Debug` tell).
+#[derive(Clone)]
+pub struct MethodRef(Arc<dyn Method>);
+
+impl MethodRef {
+    /// Wraps a method.
+    pub fn new(m: Box<dyn Method>) -> Self {
+        Self(Arc::from(m))
+    }
+
+    /// The method.
+    pub fn get(&self) -> &dyn Method {
+        self.0.as_ref()
+    }
+}
+
+impl std::ops::Deref for MethodRef {
+    type Target = dyn Method;
+    fn deref(&self) -> &Self::Target {
+        self.0.as_ref()
+    }
+}
+
+impl fmt::Debug for MethodRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl fmt::Display for MethodRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0.name())
+    }
+}
+
+impl PartialEq for MethodRef {
+    fn eq(&self, other: &Self) -> bool {
+        format!("{:?}", self.0) == format!("{:?}", other.0)
+    }
+}
+
+impl std::str::FromStr for MethodRef {
+    type Err = SolverError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        parse(s).map(Self::new)
+    }
+}
+
+impl From<Box<dyn Method>> for MethodRef {
+    fn from(m: Box<dyn Method>) -> Self {
+        Self::new(m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn names_round_trip_case_insensitively() {
+        for spec in ["cda", "fld", "FLD:LP", "fld:sum", "fld:larsen2", "Lbm"] {
+            let m = parse(spec).unwrap();
+            let again = parse(&m.name()).unwrap();
+            assert_eq!(m.name(), again.name(), "{spec}");
+            assert_eq!(format!("{m:?}"), format!("{again:?}"), "{spec}");
+        }
+        assert_eq!(parse("fld").unwrap().name(), "fld:lp");
+    }
+
+    #[test]
+    fn unknown_names_and_parameters_list_what_exists() {
+        let e = parse("lpx").unwrap_err().to_string();
+        for f in METHODS {
+            assert!(e.contains(f.name), "{e}");
+        }
+        let e = parse_with("lbm", &Params::none().with("omega", 1.5))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("omega") && e.contains("none"), "{e}");
+        assert!(parse("fld:bogus").is_err());
+        assert!(Params::parse(["omega"]).is_err());
+        assert!(Params::parse(["omega=x"]).is_err());
+    }
+
+    #[test]
+    fn parameters_reach_the_method() {
+        let a = parse_with("fld:lp", &Params::parse(["omega=1.5"]).unwrap()).unwrap();
+        let b = parse("fld:lp").unwrap();
+        assert_ne!(format!("{a:?}"), format!("{b:?}"));
+        assert!(parse_with("fld", &Params::none().with("omega", 2.5)).is_err());
+    }
+}
