@@ -25,7 +25,7 @@
 //! 2 %, 1 %: the fastest point whose debiased error reaches it), `references.csv` and
 //! `meta.json`.
 
-use crate::common::{BackendArgs, CommonArgs, Ctx, parse_list, progress};
+use crate::common::{BackendArgs, CommonArgs, Ctx, list_item, progress};
 use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::methods::Renderer;
 use crate::plot::{Axis, Series, Style, plot};
@@ -65,8 +65,8 @@ pub struct Args {
     pub reference_spp: Option<u32>,
     /// Samples per pixel of the path tracer's own points, each ≥ 16 (default
     /// 16,64,256,1024,2048; 16,32 with --quick).
-    #[arg(long)]
-    pub spp: Option<String>,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<u32>)]
+    pub spp: Option<Vec<u32>>,
     /// Methods to run (names from the registry, comma-separated; default all).
     #[arg(long)]
     pub methods: Option<String>,
@@ -419,7 +419,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     let quick = args.common.quick;
     let ref_spp = args.reference_spp.unwrap_or(if quick { 256 } else { 4096 });
     let spp: Vec<u32> = match &args.spp {
-        Some(s) => parse_list("spp", s)?,
+        Some(v) => v.clone(),
         None if quick => vec![16, 32],
         None => vec![16, 64, 256, 1024, 2048],
     };

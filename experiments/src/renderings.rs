@@ -23,7 +23,7 @@
 //!   bright, blue: too dark, saturated at 25 % of the white point).
 
 use crate::accuracy_cost::grid_config;
-use crate::common::{BackendArgs, CommonArgs, Ctx, parse_list, progress};
+use crate::common::{BackendArgs, CommonArgs, Ctx, list_item, progress};
 use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::images::{
     ColourMap, Tile, relative_noise, white_point, write_strip, write_strip_with_bar,
@@ -51,18 +51,18 @@ pub struct Args {
     #[arg(long, default_value = "scenes/nebula.toml,scenes/shell_core.toml")]
     pub scenes: String,
     /// Albedos of the sweep (default 0.1,0.3,0.5,0.7,0.9,1.0; 0.3,0.9 with --quick).
-    #[arg(long)]
-    pub albedo: Option<String>,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>)]
+    pub albedo: Option<Vec<f64>>,
     /// Grid methods, comma-separated: any registered method (see `render --help`).
     #[arg(long, default_value = "cda,fld:lp", long_help = format!("Grid methods, comma-separated; {}", solvers::method::names()))]
     pub methods: String,
     /// Diffusion downsampling factors (1 = full resolution).
-    #[arg(long, default_value = "1,4")]
-    pub downsample: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<usize>, default_value = "1,4")]
+    pub downsample: Vec<usize>,
     /// Albedos at which factor 1 (full resolution) also runs — it costs more than the
     /// rest of the sweep together (default 0.9).
-    #[arg(long)]
-    pub full_at: Option<String>,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>)]
+    pub full_at: Option<Vec<f64>>,
     /// Samples per pixel of the reference (default 1024; 64 with --quick).
     #[arg(long)]
     pub spp: Option<u32>,
@@ -188,7 +188,7 @@ pub fn run(args: &Args) -> Result<Outcome> {
 fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
     let quick = args.common.quick;
     let albedos: Vec<f64> = match &args.albedo {
-        Some(s) => parse_list("albedo", s)?,
+        Some(v) => v.clone(),
         None if quick => vec![0.3, 0.9],
         None => vec![0.1, 0.3, 0.5, 0.7, 0.9, 1.0],
     };
@@ -201,13 +201,13 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
         .map(|m| m.trim().parse::<MethodRef>())
         .collect::<Result<_, _>>()
         .context("--methods")?;
-    let factors: Vec<usize> = parse_list("downsample", &args.downsample)?;
+    let factors: Vec<usize> = args.downsample.clone();
     if factors.contains(&0) {
         bail!("--downsample factors must be at least 1");
     }
     let spp = args.spp.unwrap_or(if quick { 64 } else { 1024 });
     let full_at: Vec<f64> = match &args.full_at {
-        Some(s) => parse_list("full-at", s)?,
+        Some(v) => v.clone(),
         None => vec![0.9],
     };
     let coarsen = args.coarsen.unwrap_or(if quick { 2 } else { 1 });
