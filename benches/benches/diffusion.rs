@@ -103,35 +103,9 @@ fn run_mode() -> RunMode {
     }
 }
 
-/// Parses a comma-separated size list such as `64,128`.
+/// Parses a comma-separated size list such as `64,128` (shared rules: `benches::cli`).
 fn parse_sizes(text: &str) -> Result<Vec<usize>, String> {
-    let mut sizes = Vec::new();
-    for item in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-        let n: usize = item.parse().map_err(|e| {
-            format!(
-                "{SIZES_ENV}: `{item}` is not a grid size ({e}); expected e.g. {SIZES_ENV}=64,128"
-            )
-        })?;
-        if n < 3 {
-            return Err(format!(
-                "{SIZES_ENV}: grid size {n} is too small; the solver needs n ≥ 3"
-            ));
-        }
-        if n.checked_pow(3).is_none() {
-            return Err(format!(
-                "{SIZES_ENV}: grid size {n} is too large; n³ overflows"
-            ));
-        }
-        if !sizes.contains(&n) {
-            sizes.push(n);
-        }
-    }
-    if sizes.is_empty() {
-        return Err(format!(
-            "{SIZES_ENV}=`{text}` names no grid size; expected e.g. {SIZES_ENV}=64,128"
-        ));
-    }
-    Ok(sizes)
+    benches::cli::parse_sizes(SIZES_ENV, text)
 }
 
 /// The size list: from [`SIZES_ENV`] if set, else the defaults for `mode`.

@@ -34,35 +34,16 @@ const SUMMARY_BATCHES: usize = 7;
 const CSV_PATH: &str = "results/bench/diffusion_gpu.csv";
 
 fn fail(message: &str) -> ! {
-    eprintln!("diffusion_gpu bench: {message}");
-    std::process::exit(2)
+    benches::cli::fail("diffusion_gpu", message)
 }
 
-fn benchmark_mode() -> bool {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    args.iter().any(|a| a == "--bench")
-        && !args
-            .iter()
-            .any(|a| a == "--test" || a == "--list" || a.starts_with("--profile-time"))
-}
-
+/// The size list; on a CPU adapter (lavapipe) the defaults stop at 256³.
 fn sizes(bench: bool, cpu_adapter: bool) -> Vec<usize> {
-    match std::env::var(SIZES_ENV) {
-        Ok(text) => text
-            .split(',')
-            .map(str::trim)
-            .filter(|s| !s.is_empty())
-            .map(|s| match s.parse::<usize>() {
-                Ok(n) if n >= 3 => n,
-                _ => fail(&format!("{SIZES_ENV}: `{s}` is not a grid size ≥ 3")),
-            })
-            .collect(),
-        Err(_) if bench => DEFAULT_SIZES
-            .into_iter()
-            .filter(|&n| !(cpu_adapter && n > 256))
-            .collect(),
-        Err(_) => TEST_SIZES.to_vec(),
-    }
+    let defaults: Vec<usize> = DEFAULT_SIZES
+        .into_iter()
+        .filter(|&n| !(cpu_adapter && n > 256))
+        .collect();
+    benches::cli::sizes(SIZES_ENV, bench, &defaults, &TEST_SIZES).unwrap_or_else(|e| fail(&e))
 }
 
 fn config(method: &str) -> FldConfig {
@@ -90,7 +71,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() {
-    let bench = benchmark_mode();
+    let bench = benches::cli::benchmark_mode();
     let ctx = match GpuContext::from_env() {
         Ok(ctx) => ctx,
         Err(e) => {

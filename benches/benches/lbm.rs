@@ -36,32 +36,11 @@ const PROBE_REPS: usize = 5;
 const CSV_PATH: &str = "results/bench/lbm.csv";
 
 fn fail(message: &str) -> ! {
-    eprintln!("lbm bench: {message}");
-    std::process::exit(2)
-}
-
-fn benchmark_mode() -> bool {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    args.iter().any(|a| a == "--bench")
-        && !args
-            .iter()
-            .any(|a| a == "--test" || a == "--list" || a.starts_with("--profile-time"))
+    benches::cli::fail("lbm", message)
 }
 
 fn sizes(bench: bool) -> Vec<usize> {
-    match std::env::var(SIZES_ENV) {
-        Ok(text) => text
-            .split(',')
-            .map(str::trim)
-            .filter(|s| !s.is_empty())
-            .map(|s| match s.parse::<usize>() {
-                Ok(n) if n >= 3 => n,
-                _ => fail(&format!("{SIZES_ENV}: `{s}` is not a lattice size ≥ 3")),
-            })
-            .collect(),
-        Err(_) if bench => DEFAULT_SIZES.to_vec(),
-        Err(_) => TEST_SIZES.to_vec(),
-    }
+    benches::cli::sizes(SIZES_ENV, bench, &DEFAULT_SIZES, &TEST_SIZES).unwrap_or_else(|e| fail(&e))
 }
 
 fn medium(n: usize) -> Medium<f64> {
@@ -257,7 +236,7 @@ fn bench_gpu(c: &mut Criterion, sizes: &[usize], summary: bool, rows: &mut Vec<R
 }
 
 fn main() {
-    let bench = benchmark_mode();
+    let bench = benches::cli::benchmark_mode();
     let sizes = sizes(bench);
     let mut c = Criterion::default()
         .sample_size(10)

@@ -5,6 +5,8 @@
 //!   effective bandwidth can be put in relation to what the memory system delivers for a
 //!   simple streaming kernel on the same machine, at the same moment.
 //! * [`median_seconds`]: the median wall-clock time of a closure over a few runs.
+//! * [`cli`]: what every bench binary shares: benchmark vs test mode, the size list from the
+//!   environment, fatal errors, and writing its summary CSV under `results/bench/`.
 #![deny(missing_docs)]
 
 use std::hint::black_box;
@@ -112,6 +114,97 @@ pub mod bandwidth {
     }
 }
 
+pub mod cli {
+    //! Shared by the bench binaries.
+
+    use std::path::PathBuf;
+
+    /// Prints `bench: message` and exits with status 2 (a bench has no caller to return to).
+    pub fn fail(bench: &str, message: &str) -> ! {
+        eprintln!("{bench} bench: {message}");
+        std::process::exit(2)
+    }
+
+    /// Whether criterion runs in benchmark mode (`--bench` given, no `--test`, `--list` or
+    /// `--profile-time`): only then are summaries measured and written.
+    pub fn benchmark_mode() -> bool {
+        let args: Vec<String> = std::env::args().skip(1).collect();
+        is_benchmark_mode(&args)
+    }
+
+    /// [`benchmark_mode`] for an explicit argument list.
+    pub fn is_benchmark_mode(args: &[String]) -> bool {
+        args.iter().any(|a| a == "--bench")
+            && !args
+                .iter()
+                .any(|a| a == "--test" || a == "--list" || a.starts_with("--profile-time"))
+    }
+
+    /// Grid sizes from the environment variable `var` (comma-separated, each ≥ 3), else
+    /// `default` in benchmark mode and `test` otherwise.
+    pub fn sizes(
+        var: &str,
+        bench: bool,
+        default: &[usize],
+        test: &[usize],
+    ) -> Result<Vec<usize>, String> {
+        match std::env::var(var) {
+            Ok(text) => parse_sizes(var, &text),
+            Err(_) if bench => Ok(default.to_vec()),
+            Err(_) => Ok(test.to_vec()),
+        }
+    }
+
+    /// Parses a comma-separated size list such as `64,128`: each a grid size n ≥ 3 whose n³
+    /// fits a `usize`, duplicates dropped; an empty list is an error.
+    pub fn parse_sizes(var: &str, text: &str) -> Result<Vec<usize>, String> {
+        let mut sizes = Vec::new();
+        for item in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            let n: usize = item.parse().map_err(|e| {
+                format!("{var}: `{item}` is not a grid size ({e}); expected e.g. {var}=64,128")
+            })?;
+            if n < 3 {
+                return Err(format!(
+                    "{var}: grid size {n} is too small; the solvers need n ≥ 3"
+                ));
+            }
+            if n.checked_pow(3).is_none() {
+                return Err(format!("{var}: grid size {n} is too large; n³ overflows"));
+            }
+            if !sizes.contains(&n) {
+                sizes.push(n);
+            }
+        }
+        if sizes.is_empty() {
+            return Err(format!(
+                "{var}=`{text}` names no grid size; expected e.g. {var}=64,128"
+            ));
+        }
+        Ok(sizes)
+    }
+
+    /// `relative` under the workspace root (the parent of this crate's manifest directory).
+    pub fn workspace_path(relative: &str) -> PathBuf {
+        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        root.parent()
+            .map(|p| p.join(relative))
+            .unwrap_or_else(|| root.join(relative))
+    }
+
+    /// Writes `contents` to `relative` under the workspace root, creating its folder, through
+    /// a temporary file renamed into place (a reader never sees half a table).
+    pub fn write_result(relative: &str, contents: &str) -> std::io::Result<PathBuf> {
+        let path = workspace_path(relative);
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir)?;
+        }
+        let tmp = path.with_extension("csv.tmp");
+        std::fs::write(&tmp, contents)?;
+        std::fs::rename(&tmp, &path)?;
+        Ok(path)
+    }
+}
+
 /// Median wall-clock seconds of `k` runs (at least 1) of `f`; the result of each run goes
 /// through [`black_box`] so it is not optimised away. With an even count the median is the
 /// mean of the two middle runs.
@@ -156,6 +249,24 @@ mod tests {
         assert_eq!(len_for_total_bytes(800, 2), 100);
         assert_eq!(len_for_total_bytes(0, 3), 1);
         assert_eq!(len_for_total_bytes(8, 0), 2);
+    }
+
+    #[test]
+    fn size_lists_parse_or_fail_with_the_variable_name() {
+        use super::cli::{is_benchmark_mode, parse_sizes};
+        assert_eq!(parse_sizes("V", "16, 32,16").unwrap(), vec![16, 32]);
+        assert!(
+            parse_sizes("V", "99999999999")
+                .unwrap_err()
+                .contains("overflows")
+        );
+        assert!(parse_sizes("V", "2").unwrap_err().contains("V"));
+        assert!(parse_sizes("V", "x").is_err());
+        assert!(parse_sizes("V", " , ").is_err());
+        let a = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert!(is_benchmark_mode(&a(&["--bench"])));
+        assert!(!is_benchmark_mode(&a(&["--bench", "--test"])));
+        assert!(!is_benchmark_mode(&a(&[])));
     }
 
     #[test]

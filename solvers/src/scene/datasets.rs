@@ -50,10 +50,6 @@ fn dist(p: [f64; 3], c: [f64; 3]) -> f64 {
     ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt()
 }
 
-fn n64() -> usize {
-    64
-}
-
 /// FLD Fig 1's "Nebulae": a noise-displaced implicit surface. With
 /// f(p) = |p − c| − `radius` + `amplitude`·fbm(`frequency`·p, `octaves`) (c the centre of the
 /// cube), σt = `sigma_max`·smoothstep(−f/`edge`): dense inside the displaced surface,
@@ -63,60 +59,42 @@ fn n64() -> usize {
 /// no emission. Colour: the scene file scales σt per channel (`sigma_t_rgb`), as the paper
 /// introduces colour "by a color-dependent scaling of the extinction field".
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct Nebula {
     /// Voxels per axis (default 64).
-    #[serde(default = "n64")]
     pub n: usize,
     /// Noise seed (default 1).
-    #[serde(default = "one_u64")]
     pub seed: u64,
     /// Largest σt (default 60).
-    #[serde(default = "nebula_sigma")]
     pub sigma_max: f64,
     /// Albedo (default 0.9, the paper's).
-    #[serde(default = "albedo09")]
     pub albedo: f64,
     /// Radius of the undisplaced surface (default 0.3).
-    #[serde(default = "r03")]
     pub radius: f64,
     /// Displacement amplitude (default 0.15).
-    #[serde(default = "a015")]
     pub amplitude: f64,
     /// Noise frequency (default 3).
-    #[serde(default = "f3")]
     pub frequency: f64,
     /// Octaves (default 4).
-    #[serde(default = "o4")]
     pub octaves: u32,
     /// Width of the soft edge (default 0.05).
-    #[serde(default = "e005")]
     pub edge: f64,
 }
 
-fn one_u64() -> u64 {
-    1
-}
-fn nebula_sigma() -> f64 {
-    60.0
-}
-fn albedo09() -> f64 {
-    0.9
-}
-fn r03() -> f64 {
-    0.3
-}
-fn a015() -> f64 {
-    0.15
-}
-fn f3() -> f64 {
-    3.0
-}
-fn o4() -> u32 {
-    4
-}
-fn e005() -> f64 {
-    0.05
+impl Default for Nebula {
+    fn default() -> Self {
+        Self {
+            n: 64,
+            seed: 1,
+            sigma_max: 60.0,
+            albedo: 0.9,
+            radius: 0.3,
+            amplitude: 0.15,
+            frequency: 3.0,
+            octaves: 4,
+            edge: 0.05,
+        }
+    }
 }
 
 impl Generator for Nebula {
@@ -153,30 +131,30 @@ impl Generator for Nebula {
 /// ([`crate::scenes::vacuum_cloud`]: radius 0.35, emission max(0, 0.5 + fbm(4p, 3))), with
 /// σt, albedo and the emission scaled by parameters (defaults: the Fig 4 values 20, 0.9, 1).
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct EmissiveCloud {
     /// Voxels per axis (default 64).
-    #[serde(default = "n64")]
     pub n: usize,
     /// Noise seed (default 0).
-    #[serde(default)]
     pub seed: u64,
     /// σt inside (default 20).
-    #[serde(default = "s20")]
     pub sigma_t: f64,
     /// Albedo inside (default 0.9).
-    #[serde(default = "albedo09")]
     pub albedo: f64,
     /// Emission multiplier (default 1).
-    #[serde(default = "one_f64")]
     pub emission_scale: f64,
 }
 
-fn s20() -> f64 {
-    20.0
-}
-fn one_f64() -> f64 {
-    1.0
+impl Default for EmissiveCloud {
+    fn default() -> Self {
+        Self {
+            n: 64,
+            seed: 0,
+            sigma_t: 20.0,
+            albedo: 0.9,
+            emission_scale: 1.0,
+        }
+    }
 }
 
 impl Generator for EmissiveCloud {
@@ -211,48 +189,36 @@ impl Generator for EmissiveCloud {
 /// light scattered by the core crosses vacuum before the shell sees it: the dense-to-vacuum
 /// transitions where FLD and CDA differ most.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct ShellCore {
     /// Voxels per axis (default 64).
-    #[serde(default = "n64")]
     pub n: usize,
     /// Core radius (default 0.15).
-    #[serde(default = "r015")]
     pub core_radius: f64,
     /// Core σt (default 100).
-    #[serde(default = "s100")]
     pub core_sigma: f64,
     /// Outer shell radius (default 0.42).
-    #[serde(default = "r042")]
     pub shell_radius: f64,
     /// Shell thickness (default 0.05).
-    #[serde(default = "t005")]
     pub shell_thickness: f64,
     /// Shell σt (default 8).
-    #[serde(default = "s8")]
     pub shell_sigma: f64,
     /// Albedo (default 0.95).
-    #[serde(default = "albedo095")]
     pub albedo: f64,
 }
 
-fn r015() -> f64 {
-    0.15
-}
-fn s100() -> f64 {
-    100.0
-}
-fn r042() -> f64 {
-    0.42
-}
-fn t005() -> f64 {
-    0.05
-}
-fn s8() -> f64 {
-    8.0
-}
-fn albedo095() -> f64 {
-    0.95
+impl Default for ShellCore {
+    fn default() -> Self {
+        Self {
+            n: 64,
+            core_radius: 0.15,
+            core_sigma: 100.0,
+            shell_radius: 0.42,
+            shell_thickness: 0.05,
+            shell_sigma: 8.0,
+            albedo: 0.95,
+        }
+    }
 }
 
 impl Generator for ShellCore {
@@ -313,51 +279,39 @@ impl Generator for ShellCore {
 /// Albedo `albedo` (default 0.95; the paper uses 1.0, which this accepts). The monochrome
 /// medium ([`Generator::generate`]) is the G channel.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct Plume {
     /// Voxels per axis (default 64).
-    #[serde(default = "n64")]
     pub n: usize,
     /// Noise seed (default 2).
-    #[serde(default = "two_u64")]
     pub seed: u64,
     /// Largest σt (default 30).
-    #[serde(default = "s30")]
     pub sigma_max: f64,
     /// Albedo (default 0.95).
-    #[serde(default = "albedo095")]
     pub albedo: f64,
     /// Noise frequency (default 6).
-    #[serde(default = "f6")]
     pub frequency: f64,
     /// Peak temperature in kelvin (default 1800).
-    #[serde(default = "t1800")]
     pub t_max: f64,
     /// Ambient temperature in kelvin (default 500).
-    #[serde(default = "t500")]
     pub t_ambient: f64,
     /// Emission of the G channel at full density and `t_max` (default 200).
-    #[serde(default = "e20")]
     pub emission_scale: f64,
 }
 
-fn two_u64() -> u64 {
-    2
-}
-fn s30() -> f64 {
-    30.0
-}
-fn f6() -> f64 {
-    6.0
-}
-fn t1800() -> f64 {
-    1800.0
-}
-fn t500() -> f64 {
-    500.0
-}
-fn e20() -> f64 {
-    200.0
+impl Default for Plume {
+    fn default() -> Self {
+        Self {
+            n: 64,
+            seed: 2,
+            sigma_max: 30.0,
+            albedo: 0.95,
+            frequency: 6.0,
+            t_max: 1800.0,
+            t_ambient: 500.0,
+            emission_scale: 200.0,
+        }
+    }
 }
 
 /// Wavelengths of the R, G, B channels in metres.

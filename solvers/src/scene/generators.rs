@@ -9,6 +9,7 @@ use crate::noise::Perlin;
 use crate::{Grid, Medium, SolverError, scenes};
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
+use thiserror::Error;
 
 /// A procedural medium with parameters read from a scene file.
 pub trait Generator: DeserializeOwned {
@@ -28,25 +29,16 @@ pub trait Generator: DeserializeOwned {
 type Channels = Option<[Medium<f64>; 3]>;
 
 /// Why a generator could not build its medium.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Error)]
 pub enum GeneratorError {
     /// The parameters do not deserialise (unknown key, wrong type, missing value); the error
     /// carries the span in the document it was parsed from.
+    #[error("{}", .0.message())]
     Params(toml::de::Error),
     /// The parameters parse but are out of range.
+    #[error("{0}")]
     Solver(SolverError),
 }
-
-impl std::fmt::Display for GeneratorError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            GeneratorError::Params(e) => write!(f, "{}", e.message()),
-            GeneratorError::Solver(e) => write!(f, "{e}"),
-        }
-    }
-}
-
-impl std::error::Error for GeneratorError {}
 
 /// A registered generator: its name, description and builder.
 #[derive(Debug, Clone, Copy)]
@@ -127,12 +119,9 @@ struct ParamsDoc<G> {
 
 #[derive(Deserialize)]
 struct ParamsMedium<G> {
-    #[serde(default = "none")]
+    /// Absent when the document has no `[medium.params]` (serde's rule for a missing
+    /// `Option`; `#[serde(default)]` would demand `G: Default`).
     params: Option<G>,
-}
-
-fn none<G>() -> Option<G> {
-    None
 }
 
 fn params_of<G: Generator>(document: &str) -> Result<G, GeneratorError> {
@@ -158,14 +147,18 @@ fn build_channels_from_document<G: Generator>(document: &str) -> Result<Channels
 /// [`scenes::vacuum_cloud`]: FLD Fig 4's spherical cloud with Perlin-noise emission, on the
 /// unit cube.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct VacuumCloud {
     /// Voxels per axis (default 64).
-    #[serde(default = "default_n64")]
     pub n: usize,
     /// Noise seed (default 0).
-    #[serde(default)]
     pub seed: u64,
+}
+
+impl Default for VacuumCloud {
+    fn default() -> Self {
+        Self { n: 64, seed: 0 }
+    }
 }
 
 impl Generator for VacuumCloud {
@@ -182,15 +175,26 @@ impl Generator for VacuumCloud {
 #[serde(deny_unknown_fields)]
 pub struct Homogeneous {
     /// Voxels per axis (default 32).
-    #[serde(default = "default_n32")]
+    #[serde(default = "Homogeneous::default_n")]
     pub n: usize,
     /// Edge length of the cube (default 1).
-    #[serde(default = "one")]
+    #[serde(default = "Homogeneous::default_extent")]
     pub extent: f64,
     /// Extinction σt (required).
     pub sigma_t: f64,
     /// Single-scattering albedo (required).
     pub albedo: f64,
+}
+
+/// The defaults of the optional parameters. `Homogeneous` has required ones (`sigma_t`,
+/// `albedo`), so it cannot be `#[serde(default)]` with a `Default` like the other generators.
+impl Homogeneous {
+    fn default_n() -> usize {
+        32
+    }
+    fn default_extent() -> f64 {
+        1.0
+    }
 }
 
 impl Generator for Homogeneous {
@@ -210,17 +214,24 @@ impl Generator for Homogeneous {
 
 /// [`scenes::random_heterogeneous`]: random per-voxel σt, albedo and sparse emission.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct RandomHeterogeneous {
     /// Voxels along x, y, z (default 16³).
-    #[serde(default = "default_n16x3")]
     pub n: [usize; 3],
     /// Seed (default 0).
-    #[serde(default)]
     pub seed: u64,
     /// Probability of a vacuum voxel (default 0).
-    #[serde(default)]
     pub vacuum_fraction: f64,
+}
+
+impl Default for RandomHeterogeneous {
+    fn default() -> Self {
+        Self {
+            n: [16; 3],
+            seed: 0,
+            vacuum_fraction: 0.0,
+        }
+    }
 }
 
 impl Generator for RandomHeterogeneous {
@@ -244,29 +255,36 @@ impl Generator for RandomHeterogeneous {
 /// edge factor s(r) = smoothstep of (radius − r)/(0.3·radius) fades the density to 0 at the
 /// sphere; σt = 0 outside; albedo `albedo` everywhere, no emission.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct NoiseCloud {
     /// Voxels per axis (default 64).
-    #[serde(default = "default_n64")]
     pub n: usize,
     /// Noise seed (default 0).
-    #[serde(default)]
     pub seed: u64,
     /// Largest σt (default 20).
-    #[serde(default = "default_sigma_max")]
     pub sigma_max: f64,
     /// Albedo of every voxel (default 0.9).
-    #[serde(default = "default_albedo")]
     pub albedo: f64,
     /// Cloud radius (default 0.4).
-    #[serde(default = "default_radius")]
     pub radius: f64,
     /// Noise frequency (default 4).
-    #[serde(default = "default_frequency")]
     pub frequency: f64,
     /// Noise octaves (default 4).
-    #[serde(default = "default_octaves")]
     pub octaves: u32,
+}
+
+impl Default for NoiseCloud {
+    fn default() -> Self {
+        Self {
+            n: 64,
+            seed: 0,
+            sigma_max: 20.0,
+            albedo: 0.9,
+            radius: 0.4,
+            frequency: 4.0,
+            octaves: 4,
+        }
+    }
 }
 
 impl Generator for NoiseCloud {
@@ -298,34 +316,6 @@ impl Generator for NoiseCloud {
         let n = grid.len();
         Medium::new(grid, sigma_t, vec![self.albedo; n], vec![0.0; n])
     }
-}
-
-fn default_n64() -> usize {
-    64
-}
-fn default_n32() -> usize {
-    32
-}
-fn default_n16x3() -> [usize; 3] {
-    [16; 3]
-}
-fn one() -> f64 {
-    1.0
-}
-fn default_sigma_max() -> f64 {
-    20.0
-}
-fn default_albedo() -> f64 {
-    0.9
-}
-fn default_radius() -> f64 {
-    0.4
-}
-fn default_frequency() -> f64 {
-    4.0
-}
-fn default_octaves() -> u32 {
-    4
 }
 
 #[cfg(test)]
@@ -363,6 +353,51 @@ mod tests {
             .unwrap_err();
         assert!(matches!(err, GeneratorError::Solver(_)), "{err}");
         assert!(find("nope").is_none());
+    }
+
+    /// `Default` is the one place of the defaults: a generator built from an empty
+    /// `[medium.params]` (or none) is the one its `Default` builds, and `Homogeneous` (no
+    /// `Default`: it has required parameters) still demands them.
+    #[test]
+    fn empty_params_build_the_default_generator() {
+        use super::super::datasets::{EmissiveCloud, Nebula, Plume, ShellCore};
+        fn check<G: Generator + Default>() {
+            let entry = find(G::NAME).unwrap();
+            let want = G::default().generate().unwrap();
+            assert_eq!(
+                entry.build(&toml::Table::new()).unwrap(),
+                want,
+                "{}",
+                G::NAME
+            );
+            let bare = "[medium]\ngenerator = \"x\"\n";
+            assert_eq!(
+                entry.build_from_document(bare).unwrap(),
+                want,
+                "{}",
+                G::NAME
+            );
+            assert_eq!(
+                entry.build_channels_from_document(bare).unwrap(),
+                G::default().generate_channels().unwrap(),
+                "{}",
+                G::NAME
+            );
+        }
+        check::<VacuumCloud>();
+        check::<RandomHeterogeneous>();
+        check::<NoiseCloud>();
+        check::<Nebula>();
+        check::<EmissiveCloud>();
+        check::<ShellCore>();
+        check::<Plume>();
+        let h: Homogeneous = toml::from_str("sigma_t = 1.0\nalbedo = 0.5").unwrap();
+        assert_eq!((h.n, h.extent), (32, 1.0));
+        let err = find("homogeneous")
+            .unwrap()
+            .build_from_document("[medium]\n")
+            .unwrap_err();
+        assert!(err.to_string().contains("missing field `sigma_t`"), "{err}");
     }
 
     #[test]
