@@ -243,3 +243,16 @@ fn convergence_quick_converges_and_iterations_grow_with_resolution() {
         "iterations vs n: {res:?}"
     );
 }
+
+/// The committed `results/README.md` embeds every PNG committed under `results/` and has no
+/// line over 300 characters (regenerate it with `just figures-report` after adding a plot).
+#[test]
+fn committed_results_readme_embeds_every_plot_with_short_lines() {
+    let root = experiments::common::workspace_root().join("results");
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let problems = check_readme(&readme, &root, 300);
+    assert!(
+        problems.is_empty(),
+        "{problems:#?}\n(regenerate with `cargo run --release -p experiments --bin figures -- --report-only`)"
+    );
+}

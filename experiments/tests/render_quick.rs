@@ -81,7 +81,7 @@ fn render_quick_writes_images_plan_and_meta_for_grid_methods_and_the_path_tracer
                     "raymarch_multiple"
                 ]
             );
-            assert_eq!(plan["diffusion"][0]["status"], "converged");
+            assert_eq!(plan["diffusion"][0]["stop"], "converged");
         }
         std::fs::remove_dir_all(&dir).ok();
     }
