@@ -469,7 +469,10 @@ impl Experiment for MitsubaCompare {
         format!("{}/{}", Self::NAME, scene_stem(&args.scene))
     }
 
-    fn figure_runs(_quick: bool) -> Vec<FigureRun> {
+    fn figure_runs(quick: bool) -> Vec<FigureRun> {
+        // Quick runs keep 1024 paths per pixel (on 32×32): enough power for the claims that
+        // `tests/registry.rs` checks on them, at about the cost of Mitsuba's start-up.
+        let spp: &[&str] = if quick { &["--spp", "1024"] } else { &[] };
         ["cloud_directional", "emissive_sphere"]
             .into_iter()
             .map(|scene| {
@@ -481,6 +484,7 @@ impl Experiment for MitsubaCompare {
                     format!("{}: {scene}", Self::TITLE),
                 )
                 .args(["--scene".to_string(), path.display().to_string()])
+                .args(spp.iter().copied())
             })
             .collect()
     }

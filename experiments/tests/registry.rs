@@ -33,7 +33,7 @@ fn quick() -> &'static Quick {
                 let mut outcome = RunOutcome::new(e, run.clone());
                 match e.run(&argv) {
                     Ok(()) => problems.extend(common::broken_promises(e, &argv, &dir)),
-                    // Mitsuba is optional here; `tests/mitsuba_compare.rs` requires it in CI.
+                    // Mitsuba is optional here (`both_example_scenes_agree_with_mitsuba` requires it when SCATTERBENCH_REQUIRE_MITSUBA=1, as in CI).
                     Err(err) if unavailable(&err).is_some() => {
                         eprintln!("skipped {}: {err:#}", run.dir);
                         outcome.skipped = Some(format!("{err:#}"));
@@ -255,4 +255,50 @@ fn committed_results_readme_embeds_every_plot_with_short_lines() {
         problems.is_empty(),
         "{problems:#?}\n(regenerate with `cargo run --release -p experiments --bin figures -- --report-only`)"
     );
+}
+
+/// Our path tracer against Mitsuba 3 on both example scenes (quick: 32×32, 1024 paths per
+/// pixel): at least 99 % of the pixels pass the per-pixel test, the image means agree within
+/// 4 combined standard errors (a false alarm has probability 6e-5), and the test has the power
+/// to see a 5 % difference. Without Mitsuba (scripts/setup-mitsuba.sh) it prints "skipped"
+/// and passes, unless SCATTERBENCH_REQUIRE_MITSUBA=1, when it fails.
+#[test]
+fn both_example_scenes_agree_with_mitsuba() {
+    let root = quick().root.join("mitsuba_compare");
+    for scene in ["cloud_directional", "emissive_sphere"] {
+        let dir = root.join(scene);
+        if !dir.join("comparison.csv").exists() {
+            assert!(
+                std::env::var("SCATTERBENCH_REQUIRE_MITSUBA").as_deref() != Ok("1"),
+                "SCATTERBENCH_REQUIRE_MITSUBA=1 but the {scene} comparison did not run"
+            );
+            eprintln!("skipped: Mitsuba not installed (run scripts/setup-mitsuba.sh)");
+            return;
+        }
+        let meta = std::fs::read_to_string(dir.join("meta.json")).unwrap();
+        assert!(
+            meta.contains("\"variants\"") && meta.contains("scalar_rgb"),
+            "{meta}"
+        );
+        let t = Table::read(&dir.join("comparison.csv")).unwrap();
+        let r = t.rows().next().unwrap();
+        assert_eq!(r.num("pixels"), (32 * 32) as f64, "{scene}");
+        assert!(
+            r.num("fraction_passing") >= 0.99,
+            "{scene}: {}",
+            r.get("fraction_passing")
+        );
+        assert!(
+            r.num("mean_z").abs() < 4.0,
+            "{scene}: mean z {}",
+            r.get("mean_z")
+        );
+        let combined = r
+            .num("mean_ours_stderr")
+            .hypot(r.num("mean_mitsuba_stderr"));
+        assert!(
+            0.05 * r.num("mean_mitsuba") > 4.0 * combined,
+            "{scene}: combined se {combined}"
+        );
+    }
 }
