@@ -82,6 +82,8 @@ fn render_quick_writes_images_plan_and_meta_for_grid_methods_and_the_path_tracer
                 ]
             );
             assert_eq!(plan["diffusion"][0]["stop"], "converged");
+            let canonical = solvers::method::parse(method).unwrap().name();
+            assert_eq!(plan["diffusion"][0]["method"], canonical.as_str());
         }
         std::fs::remove_dir_all(&dir).ok();
     }

@@ -70,3 +70,72 @@ fn a_destroyed_device_is_reported_as_lost() {
         other => panic!("expected DeviceLost, got {other:?}"),
     }
 }
+
+#[test]
+fn a_kernel_bound_against_its_spec_gives_a_typed_error_naming_the_binding() {
+    use solvers::gpu::kernel::{Contract, Kernel, specs};
+    let Some(ctx) = gpu("a_kernel_bound_against_its_spec_gives_a_typed_error_naming_the_binding")
+    else {
+        return;
+    };
+    let spec = specs()
+        .into_iter()
+        .find(|s| s.label == "copy.wgsl")
+        .unwrap();
+    let problem = |r: Result<_, GpuError>| match r {
+        Err(GpuError::Contract { problem, name, .. }) => (problem, name),
+        other => panic!("expected a contract error, got {other:?}"),
+    };
+    assert_eq!(
+        problem(Kernel::new(&ctx, spec, &[("NO_SUCH", 1.0)]).map(|_| ())),
+        (Contract::UnknownConstant, "NO_SUCH".to_string())
+    );
+    let kernel = Kernel::new(&ctx, spec, &[]).unwrap();
+    assert_eq!(
+        problem(kernel.pipeline("nope").map(|_| ())),
+        (Contract::UnknownEntry, "nope".to_string())
+    );
+    let buffer = |usage| {
+        ctx.device
+            .create_buffer(&solvers::gpu::wgpu::BufferDescriptor {
+                label: None,
+                size: 64,
+                usage,
+                mapped_at_creation: false,
+            })
+    };
+    let uniform = buffer(solvers::gpu::wgpu::BufferUsages::UNIFORM);
+    let storage = buffer(solvers::gpu::wgpu::BufferUsages::STORAGE);
+    let missing = kernel.bind(&ctx, &[("P", &uniform), ("src", &storage)]);
+    assert_eq!(
+        problem(missing.map(|_| ())),
+        (Contract::MissingBinding, "dst".to_string())
+    );
+    let unknown = kernel.bind(
+        &ctx,
+        &[("P", &uniform), ("src", &storage), ("out", &storage)],
+    );
+    let err = unknown.as_ref().map(|_| ()).unwrap_err().to_string();
+    assert!(
+        err.contains("\"out\"") && err.contains("copy.wgsl"),
+        "{err}"
+    );
+    assert_eq!(
+        problem(unknown.map(|_| ())),
+        (Contract::UnknownBinding, "out".to_string())
+    );
+    let twice = kernel.bind(
+        &ctx,
+        &[("P", &uniform), ("src", &storage), ("src", &storage)],
+    );
+    assert_eq!(
+        problem(twice.map(|_| ())),
+        (Contract::DuplicateBinding, "src".to_string())
+    );
+    let ok = kernel.bind(
+        &ctx,
+        &[("dst", &storage), ("P", &uniform), ("src", &storage)],
+    );
+    assert!(ok.is_ok(), "{ok:?}");
+    ctx.check_lost().unwrap();
+}

@@ -1,6 +1,7 @@
 // FLD Algorithm 1 on the GPU (f32): red-black SOR passes with FLD Eqs 32-37, the boundary-layer
 // D update and the RMS residual reduced on the GPU. The host wrapper is `fld/gpu.rs`; `Params`
-// mirrors its `#[repr(C)] GpuParams`.
+// mirrors its `#[repr(C)] GpuParams` and the bindings its `SPEC` (checked by
+// `tests/kernel_contract.rs`).
 //
 // Layout (same as the CPU kernel, see `fld/cpu.rs`): each field holds two packed
 // checkerboards, colour c at offset c * plen. Colour c keeps, per row (j, k), the voxels

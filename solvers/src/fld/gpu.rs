@@ -1,29 +1,28 @@
 //! The wgpu kernel of FLD Algorithm 1 (f32), the GPU twin of [`super::cpu`]: same packed
 //! red-black layout, same per-voxel arithmetic (FLD Eqs 32–37 with the decisions of
-//! [`super`]), same stopping rule. The shader is `fld.wgsl` beside this file; [`GpuParams`]
-//! is mirrored there as `Params`.
+//! [`super`]), same stopping rule. The shader is `fld.wgsl` beside this file; `GpuParams` is
+//! mirrored there as `Params`, and `SPEC` declares its bindings by name (both checked against
+//! the WGSL by `tests/kernel_contract.rs`).
 //!
 //! One iteration is three or four dispatches in one compute pass: the boundary-layer D
-//! update (FLD only), the red and the black [`sweep`](GpuFld::record_iterations), and
-//! `reduce`, which sums the per-workgroup squared residuals of both colours in a fixed
-//! order, stores R̄/j̄ and raises a `done` flag below the tolerance. Every kernel returns at
-//! once when `done` is set, so the host records [`GpuFld::check_every`] iterations per
-//! submission and reads back only the small state buffer (iteration count, flag, residuals)
-//! between them; φ is read back once at the end.
+//! update (FLD only), the red and the black `sweep`, and `reduce`, which sums the
+//! per-workgroup squared residuals of both colours in a fixed order, stores R̄/j̄ and raises
+//! a `done` flag below the tolerance. Every kernel returns at once when `done` is set, so the
+//! host records [`GpuFld::check_every`] iterations per submission and reads back only the
+//! small state buffer (iteration count, flag, residuals) between them (the shared loop of
+//! [`crate::gpu::kernel`]); φ is read back once at the end.
 
 use super::cpu::CpuFld;
 use super::{Boundary, FldConfig, FldSolution, FluxLimiter};
-use crate::gpu::{
-    GpuContext, GpuError, PassTimer, Timer, storage_buffer, storage_entry, uniform_entry,
+use crate::gpu::kernel::{
+    Access, Checkpointed, Checkpoints, Kernel, KernelSpec, run_checkpointed, struct_layout,
+    time_pass,
 };
+use crate::gpu::{GpuContext, GpuError, Timer, storage_buffer, uniform_buffer};
 use crate::method::Stop as Status;
 use crate::{Grid, Medium, SolverError};
 use bytemuck::{Pod, Zeroable};
 use std::time::Instant;
-use wgpu::util::DeviceExt;
-
-/// The shader source, validated by naga in the crate's tests.
-pub const SHADER: &str = include_str!("fld.wgsl");
 
 /// Threads per workgroup of `sweep` along x (packed m) and y (j), as in `fld.wgsl`.
 const WG_X: u32 = 32;
@@ -31,63 +30,85 @@ const WG_Y: u32 = 8;
 /// Threads per workgroup of `boundary_d`.
 const WG_BOUNDARY: u32 = 64;
 
-/// Uniforms of `fld.wgsl` (`Params` there, same field order; 112 bytes, a multiple of 16).
+/// Uniforms of `fld.wgsl` (`Params` there, same fields in the same order; 112 bytes, a
+/// multiple of 16). Checked against the WGSL by `tests/kernel_contract.rs`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
-pub struct GpuParams {
-    /// Grid size.
-    pub nx: u32,
-    /// Grid size.
-    pub ny: u32,
-    /// Grid size.
-    pub nz: u32,
+pub(crate) struct GpuParams {
+    nx: u32,
+    ny: u32,
+    nz: u32,
     /// Packed row length ⌈nx/2⌉.
-    pub h: u32,
+    h: u32,
     /// Packed values per colour.
-    pub plen: u32,
+    plen: u32,
     /// Colour of the sweep (0 red, 1 black).
-    pub color: u32,
-    /// Lowest residual-counted coordinate.
-    pub lo: u32,
-    /// Highest residual-counted i.
-    pub hi_x: u32,
-    /// Highest residual-counted j.
-    pub hi_y: u32,
-    /// Highest residual-counted k.
-    pub hi_z: u32,
+    color: u32,
+    /// Residual-counted voxels: lo ≤ i ≤ hi_x, lo ≤ j ≤ hi_y, lo ≤ k ≤ hi_z.
+    lo: u32,
+    hi_x: u32,
+    hi_y: u32,
+    hi_z: u32,
     /// Boundary-layer voxels.
-    pub boundary_count: u32,
+    boundary_count: u32,
     /// Threads per dispatch row of `boundary_d`.
-    pub boundary_row: u32,
+    boundary_row: u32,
     /// Workgroups of one sweep.
-    pub partials_per_color: u32,
+    partials_per_color: u32,
     /// Residual slots in the state buffer.
-    pub chunk: u32,
-    /// Padding.
-    pub _pad0: [u32; 2],
-    /// SOR factor ω.
-    pub omega: f32,
-    /// 1 − ω.
-    pub one_minus_omega: f32,
-    /// 1/(2Δl).
-    pub inv_2dl: f32,
-    /// 1/Δl².
-    pub inv_dl2: f32,
+    chunk: u32,
+    _pad0: u32,
+    _pad1: u32,
+    /// SOR factor ω and 1 − ω.
+    omega: f32,
+    one_minus_omega: f32,
+    /// 1/(2Δl) and 1/Δl².
+    inv_2dl: f32,
+    inv_dl2: f32,
     /// ε j̄ floor of Eq 35.
-    pub floor: f32,
-    /// θ of the D under-relaxation.
-    pub theta: f32,
-    /// 1 − θ.
-    pub one_minus_theta: f32,
+    floor: f32,
+    /// θ of the D under-relaxation, and 1 − θ.
+    theta: f32,
+    one_minus_theta: f32,
     /// n of Larsen's limiter.
-    pub larsen_n: f32,
+    larsen_n: f32,
     /// Tolerance on R̄/j̄.
-    pub tolerance: f32,
+    tolerance: f32,
     /// 1 / number of residual-counted voxels.
-    pub inv_residual_count: f32,
-    /// Padding.
-    pub _pad1: [f32; 2],
+    inv_residual_count: f32,
+    _pad2: f32,
+    _pad3: f32,
 }
+
+/// What this host code assumes about `fld.wgsl`: bindings by name, entry points, the
+/// `LIMITER` override and the layout of `Params`.
+pub(crate) const SPEC: KernelSpec = KernelSpec {
+    label: "fld.wgsl",
+    source: include_str!("fld.wgsl"),
+    bindings: &[
+        ("P", Access::Uniform),
+        ("phi", Access::ReadWrite),
+        ("dcoef", Access::ReadWrite),
+        ("sig", Access::Read),
+        ("absorb", Access::Read),
+        ("src", Access::Read),
+        ("partials", Access::ReadWrite),
+        ("state", Access::ReadWrite),
+        ("boundary", Access::Read),
+    ],
+    entries: &["boundary_d", "sweep", "reduce"],
+    constants: &["LIMITER"],
+    uniforms: &[(
+        "P",
+        struct_layout!(
+            GpuParams;
+            nx, ny, nz, h, plen, color, lo, hi_x, hi_y, hi_z, boundary_count, boundary_row,
+            partials_per_color, chunk, _pad0, _pad1, omega, one_minus_omega, inv_2dl, inv_dl2,
+            floor, theta, one_minus_theta, larsen_n, tolerance, inv_residual_count, _pad2,
+            _pad3
+        ),
+    )],
+};
 
 /// The GPU state of one diffusion solve: buffers, pipelines and bind groups for one problem
 /// size, built once and reused for every iteration.
@@ -105,14 +126,14 @@ pub struct GpuFld<'a> {
     sweep_groups: [u32; 3],
     phi: wgpu::Buffer,
     state: wgpu::Buffer,
+    /// The `boundary_d`, `sweep` and `reduce` pipelines.
     pipelines: [wgpu::ComputePipeline; 3],
     /// Bind groups with the colour-0 and colour-1 uniforms.
     binds: [wgpu::BindGroup; 2],
+    /// Iterations completed on the GPU, as last read back.
     iterations: usize,
     residuals: Vec<f64>,
-    status: Option<Status>,
     setup_seconds: f64,
-    timer: PassTimer,
 }
 
 impl<'a> GpuFld<'a> {
@@ -143,7 +164,7 @@ impl<'a> GpuFld<'a> {
             return Err(too_large("grid values", 2 * plen as u64).into());
         }
         let field_bytes = 2 * plen as u64 * 4;
-        for name in ["phi", "D", "sigma", "absorption", "source"] {
+        for name in FIELDS {
             ctx.check_storage_buffer(
                 &format!("the {name} field of a {nx}x{ny}x{nz} grid"),
                 field_bytes,
@@ -174,13 +195,8 @@ impl<'a> GpuFld<'a> {
             Vec::new()
         };
         let bcount = boundary_list.len() as u32;
-        let max_groups = ctx.limits().max_compute_workgroups_per_dimension;
         let bgroups = bcount.div_ceil(WG_BOUNDARY).max(1);
-        let boundary_groups = if bgroups <= max_groups {
-            [bgroups, 1]
-        } else {
-            [max_groups, bgroups.div_ceil(max_groups)]
-        };
+        let boundary_groups = ctx.split_workgroups("the FLD boundary-layer update", bgroups)?;
         let check_every = 32u32;
         let margin = host.residual_margin();
         let (lo, hi) = (
@@ -207,7 +223,8 @@ impl<'a> GpuFld<'a> {
             boundary_row: boundary_groups[0] * WG_BOUNDARY,
             partials_per_color,
             chunk: check_every,
-            _pad0: [0; 2],
+            _pad0: 0,
+            _pad1: 0,
             omega: p.omega,
             one_minus_omega: p.one_minus_omega,
             inv_2dl: p.inv_2dl,
@@ -221,94 +238,62 @@ impl<'a> GpuFld<'a> {
             },
             tolerance: host.tolerance() as f32,
             inv_residual_count: 1.0 / host.residual_count() as f32,
-            _pad1: [0.0; 2],
+            _pad2: 0.0,
+            _pad3: 0.0,
         };
         let needed = 5 * field_bytes + 8 * u64::from(partials_per_color) + 4 * u64::from(bcount);
         let fields = host.packed_fields();
-        let (bufs, state, partials, blist, uniforms) = ctx.allocating(
+        let buffers = ctx.allocating(
             &format!("FLD buffers for a {nx}x{ny}x{nz} grid"),
             needed,
             |d| {
-                let bufs: Vec<wgpu::Buffer> = fields
-                    .iter()
-                    .zip(["phi", "D", "sigma", "absorption", "source"])
-                    .map(|(f, name)| {
-                        let mut data = f[0].clone();
-                        data.extend_from_slice(&f[1]);
-                        storage_buffer(d, name, bytemuck::cast_slice(&data))
-                    })
-                    .collect();
-                let st = vec![0u32; 4 + check_every as usize];
-                let state = storage_buffer(d, "state", bytemuck::cast_slice(&st));
-                let partials =
-                    storage_buffer(d, "partials", &vec![0u8; 8 * partials_per_color as usize]);
-                let blist = storage_buffer(d, "boundary", bytemuck::cast_slice(&boundary_list));
-                let uniforms = [0u32, 1].map(|color| {
-                    d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("fld params"),
-                        contents: bytemuck::bytes_of(&GpuParams { color, ..base }),
-                        usage: wgpu::BufferUsages::UNIFORM,
-                    })
+                let [phi, dcoef, sig, absorb, src] = [0, 1, 2, 3, 4].map(|f| {
+                    let data = [&fields[f][0][..], &fields[f][1][..]].concat();
+                    storage_buffer(d, FIELDS[f], bytemuck::cast_slice(&data))
                 });
-                (bufs, state, partials, blist, uniforms)
+                let st = vec![0u32; 4 + check_every as usize];
+                let partials = vec![0u8; 8 * partials_per_color as usize];
+                let params = [0u32, 1]
+                    .map(|color| uniform_buffer(d, "fld params", &GpuParams { color, ..base }));
+                Buffers {
+                    params,
+                    phi,
+                    dcoef,
+                    sig,
+                    absorb,
+                    src,
+                    partials: storage_buffer(d, "partials", &partials),
+                    state: storage_buffer(d, "state", bytemuck::cast_slice(&st)),
+                    boundary: storage_buffer(d, "boundary", bytemuck::cast_slice(&boundary_list)),
+                }
             },
         )?;
-        let (pipelines, binds) = ctx.allocating("FLD pipelines", 0, |device| {
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("fld.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-            });
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("fld"),
-                entries: &[
-                    uniform_entry(0),
-                    storage_entry(1, false),
-                    storage_entry(2, false),
-                    storage_entry(3, true),
-                    storage_entry(4, true),
-                    storage_entry(5, true),
-                    storage_entry(6, false),
-                    storage_entry(7, false),
-                    storage_entry(8, true),
+        let limiter_id = f64::from(limiter_id(config.limiter));
+        let kernel = Kernel::new(ctx, &SPEC, &[("LIMITER", limiter_id)])?;
+        let pipelines = [
+            kernel.pipeline("boundary_d")?,
+            kernel.pipeline("sweep")?,
+            kernel.pipeline("reduce")?,
+        ];
+        let b = &buffers;
+        let bind = |params: &wgpu::Buffer| {
+            kernel.bind(
+                ctx,
+                &[
+                    ("P", params),
+                    ("phi", &b.phi),
+                    ("dcoef", &b.dcoef),
+                    ("sig", &b.sig),
+                    ("absorb", &b.absorb),
+                    ("src", &b.src),
+                    ("partials", &b.partials),
+                    ("state", &b.state),
+                    ("boundary", &b.boundary),
                 ],
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("fld"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let limiter_id = f64::from(limiter_id(config.limiter));
-            let constants = [("LIMITER", limiter_id)];
-            let pipelines = crate::gpu::compute_pipelines(
-                device,
-                &pipeline_layout,
-                &module,
-                ["boundary_d", "sweep", "reduce"],
-                &constants,
-            );
-            let binds = [0usize, 1].map(|c| {
-                let entries: Vec<wgpu::BindGroupEntry> = std::iter::once(&uniforms[c])
-                    .chain(bufs.iter())
-                    .chain([&partials, &state, &blist])
-                    .enumerate()
-                    .map(|(b, buf)| wgpu::BindGroupEntry {
-                        binding: b as u32,
-                        resource: buf.as_entire_binding(),
-                    })
-                    .collect();
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("fld"),
-                    layout: &layout,
-                    entries: &entries,
-                })
-            });
-            (pipelines, binds)
-        })?;
+            )
+        };
+        let binds = [bind(&b.params[0])?, bind(&b.params[1])?];
         ctx.check_lost()?;
-        let phi = bufs.into_iter().next().ok_or(GpuError::Internal {
-            context: "FLD setup".into(),
-            message: "no phi buffer".into(),
-        })?;
         Ok(Self {
             ctx,
             grid,
@@ -320,15 +305,13 @@ impl<'a> GpuFld<'a> {
             fld,
             boundary_groups,
             sweep_groups,
-            phi,
-            state,
+            phi: buffers.phi,
+            state: buffers.state,
             pipelines,
             binds,
             iterations: 0,
             residuals: Vec::new(),
-            status: None,
             setup_seconds: t0.elapsed().as_secs_f64(),
-            timer: PassTimer::new(ctx),
         })
     }
 
@@ -339,12 +322,12 @@ impl<'a> GpuFld<'a> {
 
     /// How the iteration time is measured on this device.
     pub fn timer(&self) -> Timer {
-        self.timer.timer()
+        self.ctx.timer()
     }
 
     /// Records `n` red-black iterations (boundary D, red sweep, black sweep, reduce) into
     /// `pass`. Iterations past convergence are no-ops on the GPU.
-    pub fn record_iterations(&self, pass: &mut wgpu::ComputePass<'_>, n: u32) {
+    pub(crate) fn record_iterations(&self, pass: &mut wgpu::ComputePass<'_>, n: u32) {
         let [boundary, sweep, reduce] = &self.pipelines;
         for _ in 0..n {
             if self.fld {
@@ -364,74 +347,14 @@ impl<'a> GpuFld<'a> {
         }
     }
 
-    /// Runs up to `n` iterations (fewer if it converges or hits the cap) in one submission,
-    /// reads back the state and returns the residuals of the iterations that ran.
-    pub fn run(&mut self, n: u32) -> Result<&[f64], SolverError> {
-        let start = self.residuals.len();
-        if self.status.is_some() {
-            return Ok(&self.residuals[start..]);
-        }
-        if self.trivial {
-            self.status = Some(Status::Converged);
-            return Ok(&self.residuals[start..]);
-        }
-        let n = n
-            .min(self.check_every)
-            .min((self.max_iterations - self.iterations).min(u32::MAX as usize) as u32);
-        if n == 0 {
-            self.status = Some(Status::Cap);
-            return Ok(&self.residuals[start..]);
-        }
-        // Moved out for the call (a default timer allocates nothing) and put back.
-        let mut timer = std::mem::take(&mut self.timer);
-        let state = self.submit(n, &mut timer, true);
-        self.timer = timer;
-        let state = state?;
-        let words: Vec<u32> = state
-            .chunks_exact(4)
-            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect();
-        let (iter, done) = (words[0] as usize, words[1]);
-        let chunk = self.check_every as usize;
-        for it in self.iterations..iter {
-            self.residuals
-                .push(f64::from(f32::from_bits(words[4 + it % chunk])));
-        }
-        self.iterations = iter;
-        self.status = match done {
-            1 => Some(Status::Converged),
-            2 => Some(Status::NonFinite),
-            _ if self.iterations >= self.max_iterations => Some(Status::Cap),
-            _ => None,
-        };
-        Ok(&self.residuals[start..])
-    }
-
     /// Benchmarks: records `n` iterations in one compute pass, submits and waits, and returns
     /// their seconds (GPU timestamps when the device has them, else the wall clock around
     /// submit and wait). Convergence is not checked on the host: once the GPU's `done` flag
     /// is set the remaining iterations are no-ops, so run with tolerance 0 to time real work.
     pub fn time_iterations(&mut self, n: u32) -> Result<f64, SolverError> {
-        let mut timer = PassTimer::new(self.ctx);
-        self.submit(n, &mut timer, false)?;
-        Ok(timer.seconds())
-    }
-
-    /// Records `n` iterations into one timed compute pass, submits, waits, adds the pass time
-    /// to `timer` and returns the state buffer's bytes if `read_state` (else an empty vector).
-    fn submit(
-        &self,
-        n: u32,
-        timer: &mut PassTimer,
-        read_state: bool,
-    ) -> Result<Vec<u8>, SolverError> {
-        let state_bytes = 16 + 4 * u64::from(self.check_every);
-        Ok(timer.run_pass(
-            self.ctx,
-            "fld iterations",
-            |pass| self.record_iterations(pass, n),
-            read_state.then_some((&self.state, state_bytes)),
-        )?)
+        Ok(time_pass(self.ctx, "fld iterations", |pass| {
+            self.record_iterations(pass, n)
+        })?)
     }
 
     /// Bytes one iteration must move at least (as [`CpuFld::bytes_per_iteration`] in f32:
@@ -441,37 +364,47 @@ impl<'a> GpuFld<'a> {
     }
 
     /// Iterates to convergence, the iteration cap or a non-finite residual, calling
-    /// `observer(iteration, residual)` for every iteration as its residual is read back.
+    /// `observer(iteration, residual)` for every iteration as its residual is read back
+    /// (every [`GpuFld::check_every`] iterations).
     pub fn solve_observed(
         mut self,
         mut observer: impl FnMut(usize, f64),
     ) -> Result<FldSolution<f32>, SolverError> {
-        let t0 = Instant::now();
-        while self.status.is_none() {
-            let before = self.iterations;
-            let chunk = self.check_every;
-            let fresh = self.run(chunk)?.to_vec();
-            for (q, r) in fresh.into_iter().enumerate() {
-                observer(before + q + 1, r);
+        let run = if self.trivial {
+            Checkpoints {
+                stop: Status::Converged,
+                seconds: 0.0,
+                timer: self.ctx.timer(),
             }
-        }
-        let wall = t0.elapsed().as_secs_f64();
-        let phi = self.phi()?;
-        let timer = self.timer.timer();
-        let seconds = match timer {
-            Timer::GpuTimestamps => self.timer.seconds(),
-            Timer::WallClock => wall,
+        } else {
+            let (ctx, max, every) = (self.ctx, self.max_iterations, self.check_every);
+            let cap = Status::Cap;
+            run_checkpointed(
+                ctx,
+                &mut self,
+                "fld iterations",
+                max,
+                every,
+                cap,
+                &mut observer,
+            )?
         };
-        Ok(super::solution(
+        let phi = self.phi()?;
+        Ok(self.solution(phi, run))
+    }
+
+    /// The solution record of a finished solve.
+    fn solution(self, phi: Vec<f32>, run: Checkpoints<Status>) -> FldSolution<f32> {
+        super::solution(
             self.grid,
             phi,
             self.residuals,
             self.iterations,
-            self.status.unwrap_or(Status::Cap),
-            seconds,
+            run.stop,
+            run.seconds,
             self.setup_seconds,
-            timer,
-        ))
+            run.timer,
+        )
     }
 
     /// As [`GpuFld::solve_observed`] without an observer.
@@ -485,17 +418,9 @@ impl<'a> GpuFld<'a> {
         if self.trivial {
             return Ok(vec![0.0; g.len()]);
         }
-        let encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("phi readback"),
-            });
         let plen = g.n[2] * g.n[1] * self.h;
-        let out = self
-            .ctx
-            .submit_and_read(encoder, &[(&self.phi, 2 * plen as u64 * 4)])?;
-        let packed: &[f32] = bytemuck::cast_slice(&out[0]);
+        let bytes = self.ctx.read_buffer(&self.phi, 2 * plen as u64 * 4)?;
+        let packed: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
         let scale = self.j_ref;
         let mut phi = Vec::with_capacity(g.len());
         for k in 0..g.n[2] {
@@ -520,5 +445,60 @@ fn limiter_id(l: FluxLimiter) -> u32 {
         FluxLimiter::Kershaw => 3,
         FluxLimiter::Larsen(_) => 4,
         FluxLimiter::LevermorePomraning => 5,
+    }
+}
+
+/// The buffers of one solve, named as the bindings of `fld.wgsl`; `params` holds the colour-0
+/// and colour-1 uniforms.
+struct Buffers {
+    params: [wgpu::Buffer; 2],
+    phi: wgpu::Buffer,
+    dcoef: wgpu::Buffer,
+    sig: wgpu::Buffer,
+    absorb: wgpu::Buffer,
+    src: wgpu::Buffer,
+    partials: wgpu::Buffer,
+    state: wgpu::Buffer,
+    boundary: wgpu::Buffer,
+}
+
+/// Labels of the five packed fields, in the order of [`CpuFld::packed_fields`].
+const FIELDS: [&str; 5] = ["phi", "D", "sigma", "absorption", "source"];
+
+impl Checkpointed for GpuFld<'_> {
+    type Stop = Status;
+
+    fn record(&mut self, pass: &mut wgpu::ComputePass<'_>, n: u32) {
+        self.record_iterations(pass, n);
+    }
+
+    /// The state buffer: iteration count, `done` flag, two pads, the last `chunk` residuals.
+    fn readback(&self) -> (wgpu::Buffer, u64) {
+        (self.state.clone(), 16 + 4 * u64::from(self.check_every))
+    }
+
+    fn checkpoint(
+        &mut self,
+        _n: u32,
+        bytes: &[u8],
+        observer: &mut dyn FnMut(usize, f64),
+    ) -> Option<Status> {
+        let words: Vec<u32> = bytes
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        let (iter, done) = (words[0] as usize, words[1]);
+        let chunk = self.check_every as usize;
+        for it in self.iterations..iter {
+            let r = f64::from(f32::from_bits(words[4 + it % chunk]));
+            self.residuals.push(r);
+            observer(it + 1, r);
+        }
+        self.iterations = iter;
+        match done {
+            1 => Some(Status::Converged),
+            2 => Some(Status::NonFinite),
+            _ => None,
+        }
     }
 }

@@ -1,7 +1,8 @@
 //! A device-memory copy-bandwidth probe, run beside GPU benchmarks so that their achieved
 //! bytes/s can be reported as a fraction of what the same device copies in the same run.
 
-use super::{GpuContext, GpuError, PassTimer, Timer, storage_entry, uniform_entry};
+use super::kernel::{Access, Kernel, KernelSpec, struct_layout, time_pass};
+use super::{GpuContext, GpuError, Timer, uniform_buffer};
 use bytemuck::{Pod, Zeroable};
 
 /// Uniforms of `copy.wgsl` (mirrored there as `CopyParams`).
@@ -10,11 +11,23 @@ use bytemuck::{Pod, Zeroable};
 struct CopyParams {
     len: u32,
     row: u32,
-    _pad: [u32; 2],
+    _pad0: u32,
+    _pad1: u32,
 }
 
-/// The WGSL source of the probe.
-pub const SHADER: &str = include_str!("copy.wgsl");
+/// What the probe's host code assumes about `copy.wgsl`.
+pub(crate) const SPEC: KernelSpec = KernelSpec {
+    label: "copy.wgsl",
+    source: include_str!("copy.wgsl"),
+    bindings: &[
+        ("P", Access::Uniform),
+        ("src", Access::Read),
+        ("dst", Access::ReadWrite),
+    ],
+    entries: &["copy"],
+    constants: &[],
+    uniforms: &[("P", struct_layout!(CopyParams; len, row, _pad0, _pad1))],
+};
 
 /// Result of [`copy_gbs`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,116 +58,48 @@ pub fn copy_gbs(
         limit_name: "u32 element index",
         adapter: ctx.info().name.clone(),
     })?;
-    let groups = len32.div_ceil(256);
-    let max = ctx.limits().max_compute_workgroups_per_dimension;
-    let (gx, gy) = if groups <= max {
-        (groups, 1)
-    } else {
-        (max, groups.div_ceil(max))
-    };
-    ctx.check_workgroups("bandwidth probe", gy)?;
-    let device = &ctx.device;
+    let [gx, gy] = ctx.split_workgroups("bandwidth probe", len32.div_ceil(256))?;
     let (src, dst, params) = ctx.allocating("bandwidth probe buffers", 2 * bytes, |d| {
-        let src = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("probe src"),
-            size: bytes,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
-        let dst = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("probe dst"),
-            size: bytes,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
+        let buffer = |label| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
         let p = CopyParams {
             len: len32,
             row: gx * 256,
-            _pad: [0; 2],
+            _pad0: 0,
+            _pad1: 0,
         };
-        let params = {
-            use wgpu::util::DeviceExt;
-            d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("probe params"),
-                contents: bytemuck::bytes_of(&p),
-                usage: wgpu::BufferUsages::UNIFORM,
-            })
-        };
-        (src, dst, params)
+        (
+            buffer("probe src"),
+            buffer("probe dst"),
+            uniform_buffer(d, "probe params", &p),
+        )
     })?;
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("copy.wgsl"),
-        source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-    });
-    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("probe"),
-        entries: &[
-            uniform_entry(0),
-            storage_entry(1, true),
-            storage_entry(2, false),
-        ],
-    });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("probe"),
-        bind_group_layouts: &[Some(&layout)],
-        immediate_size: 0,
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("copy"),
-        layout: Some(&pipeline_layout),
-        module: &module,
-        entry_point: Some("copy"),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("probe"),
-        layout: &layout,
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: src.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: dst.as_entire_binding(),
-            },
-        ],
-    });
+    let kernel = Kernel::new(ctx, &SPEC, &[])?;
+    let pipeline = kernel.pipeline("copy")?;
+    let bind = kernel.bind(ctx, &[("P", &params), ("src", &src), ("dst", &dst)])?;
     let mut best = 0.0f64;
-    let mut timer_kind = ctx.timer();
     for trial in 0..=trials {
-        let mut timer = PassTimer::new(ctx);
-        timer_kind = timer.timer();
-        let mut encoder = device.create_command_encoder(&Default::default());
         let n = if trial == 0 { 1 } else { reps.max(1) };
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("copy"),
-                timestamp_writes: timer.writes(),
-            });
+        let seconds = time_pass(ctx, "copy", |pass| {
             pass.set_pipeline(&pipeline);
             pass.set_bind_group(0, &bind, &[]);
             for _ in 0..n {
                 pass.dispatch_workgroups(gx, gy, 1);
             }
-        }
-        timer.resolve(&mut encoder);
-        let reads: Vec<(&wgpu::Buffer, u64)> =
-            timer.readback().map(|b| (b, 16)).into_iter().collect();
-        let out = ctx.submit_and_read(encoder, &reads)?;
-        timer.record(out.first().map(|v| v.as_slice()));
-        if trial > 0 && timer.seconds() > 0.0 {
-            best = best.max(2.0 * bytes as f64 * f64::from(n) / timer.seconds() / 1e9);
+        })?;
+        if trial > 0 && seconds > 0.0 {
+            best = best.max(2.0 * bytes as f64 * f64::from(n) / seconds / 1e9);
         }
     }
     Ok(CopyBandwidth {
         gbs: best,
         bytes,
-        timer: timer_kind,
+        timer: ctx.timer(),
     })
 }

@@ -1,6 +1,7 @@
 // Copy-bandwidth probe: dst[i] = src[i] over vec4<f32> elements, one element per thread.
 // The element index is spread over x and y so that large buffers stay within the
-// per-dimension dispatch limit. Mirrors `gpu::bandwidth::CopyParams`.
+// per-dimension dispatch limit. Mirrors `gpu::bandwidth::CopyParams`; the bindings are
+// declared in `gpu::bandwidth::SPEC` and checked by `tests/kernel_contract.rs`.
 
 struct CopyParams {
     len: u32,        // number of vec4 elements

@@ -1,5 +1,6 @@
 //! The GPU context every wgpu kernel is built from, and the small pieces they share:
-//! buffer readback, GPU timing and a copy-bandwidth probe.
+//! buffer readback, GPU timing, the [`kernel`] layer (bindings declared once by name, the
+//! checkpointed solve loop) and a copy-bandwidth probe.
 //!
 //! The caller owns the device: binaries and tests build one [`GpuContext`] (usually with
 //! [`GpuContext::from_env`]) and hand `&GpuContext` to each kernel. Kernels create their
@@ -16,6 +17,7 @@
 //!   when there is no adapter (CI sets it; see `.ci/run`).
 
 pub mod bandwidth;
+pub mod kernel;
 
 /// The wgpu version this crate is built against, re-exported for callers' types.
 pub use wgpu;
@@ -80,6 +82,20 @@ pub enum GpuError {
     /// The device was lost (driver reset, GPU removed, timeout).
     #[error("the GPU device was lost: {0}")]
     DeviceLost(String),
+    /// Host code used a kernel against its declared [`kernel::KernelSpec`] (a binding missing,
+    /// unknown or given twice; an unknown entry point or override constant): a bug in this
+    /// crate, reported rather than panicking.
+    #[error("GPU kernel {kernel:?}: {problem} {name:?} (declared: {declared:?})")]
+    Contract {
+        /// The kernel's label.
+        kernel: String,
+        /// What is wrong.
+        problem: kernel::Contract,
+        /// The offending name.
+        name: String,
+        /// The names the spec declares.
+        declared: Vec<String>,
+    },
     /// wgpu reported a validation or internal error: a bug in this crate, reported rather than
     /// panicking.
     #[error("GPU error in {context}: {message}")]
@@ -328,6 +344,20 @@ impl GpuContext {
         Ok(())
     }
 
+    /// Spreads `groups` workgroups over x and y of a dispatch: `[groups, 1]` when it fits the
+    /// per-dimension limit, else `[limit, ⌈groups/limit⌉]` (the kernel folds y back into its
+    /// index), failing with a typed error if even y exceeds the limit.
+    pub fn split_workgroups(&self, what: &str, groups: u32) -> Result<[u32; 2], GpuError> {
+        let max = self.limits().max_compute_workgroups_per_dimension;
+        let split = if groups <= max {
+            [groups, 1]
+        } else {
+            [max, groups.div_ceil(max)]
+        };
+        self.check_workgroups(what, split[1])?;
+        Ok(split)
+    }
+
     /// Runs `create` inside out-of-memory and validation error scopes, turning a captured
     /// error into [`GpuError::OutOfMemory`] (with `needed` bytes) or [`GpuError::Internal`].
     pub fn allocating<R>(
@@ -375,6 +405,17 @@ impl GpuContext {
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| GpuError::DeviceLost(e.to_string()))?;
         self.check_lost()
+    }
+
+    /// Reads the first `bytes` bytes of `buffer` back (after all submitted work).
+    pub fn read_buffer(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>, GpuError> {
+        let encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("readback"),
+            });
+        let mut out = self.submit_and_read(encoder, &[(buffer, bytes)])?;
+        Ok(out.pop().unwrap_or_default())
     }
 
     /// Submits `encoder`, then copies `sources` (buffer, byte length) into one mappable
@@ -524,66 +565,6 @@ impl PassTimer {
     pub fn seconds(&self) -> f64 {
         self.seconds
     }
-
-    /// Records one timed compute pass (`record` fills it) into a new encoder, submits it,
-    /// waits, adds the pass time, and returns the first `read.1` bytes of `read.0` (empty
-    /// without `read`). The submit path every kernel's solve loop shares.
-    pub fn run_pass(
-        &mut self,
-        ctx: &GpuContext,
-        label: &str,
-        record: impl FnOnce(&mut wgpu::ComputePass<'_>),
-        read: Option<(&wgpu::Buffer, u64)>,
-    ) -> Result<Vec<u8>, GpuError> {
-        let mut encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(label),
-                timestamp_writes: self.writes(),
-            });
-            record(&mut pass);
-        }
-        self.resolve(&mut encoder);
-        let mut reads: Vec<(&wgpu::Buffer, u64)> = read.into_iter().collect();
-        if let Some(t) = self.readback() {
-            reads.push((t, 16));
-        }
-        let mut out = ctx.submit_and_read(encoder, &reads)?;
-        let stamps = if self.readback().is_some() {
-            out.pop()
-        } else {
-            None
-        };
-        self.record(stamps.as_deref());
-        Ok(out.pop().unwrap_or_default())
-    }
-}
-
-/// One compute pipeline per entry point of `module`, all with `layout` and the same WGSL
-/// override `constants` (workgroup memory is not zero-initialised: the kernels write before
-/// they read).
-pub(crate) fn compute_pipelines<const N: usize>(
-    device: &wgpu::Device,
-    layout: &wgpu::PipelineLayout,
-    module: &wgpu::ShaderModule,
-    entries: [&str; N],
-    constants: &[(&str, f64)],
-) -> [wgpu::ComputePipeline; N] {
-    entries.map(|entry| {
-        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(entry),
-            layout: Some(layout),
-            module,
-            entry_point: Some(entry),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants,
-                zero_initialize_workgroup_memory: false,
-            },
-            cache: None,
-        })
-    })
 }
 
 /// Creates a storage buffer initialised with `data` (at least 4 bytes, for empty data).
@@ -599,30 +580,16 @@ pub(crate) fn storage_buffer(device: &wgpu::Device, label: &str, data: &[u8]) ->
     })
 }
 
-/// A storage bind-group-layout entry.
-pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A uniform bind-group-layout entry.
-pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
+/// Creates a uniform buffer holding `value`.
+pub(crate) fn uniform_buffer<T: bytemuck::Pod>(
+    device: &wgpu::Device,
+    label: &str,
+    value: &T,
+) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt;
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::bytes_of(value),
+        usage: wgpu::BufferUsages::UNIFORM,
+    })
 }

@@ -1,52 +1,72 @@
 //! The wgpu kernel of the lattice-Boltzmann update (f32), the GPU twin of [`super::cpu`]:
 //! same z-slab layout, same per-site arithmetic (LB Eqs 4–6 with the decisions of
 //! [`super`]), same stopping rule evaluated at checkpoints. The shader is `lbm.wgsl` beside
-//! this file; [`GpuParams`] is mirrored there as `Params`.
+//! this file; `GpuParams` is mirrored there as `Params`, and `SPEC` declares its bindings by
+//! name (both checked against the WGSL by `tests/kernel_contract.rs`).
 //!
-//! Two state buffers ping-pong: a step reads one and writes the other, one dispatch per step
-//! ([`GpuLbm::record_steps`]). Every [`LbmConfig::check_every`] steps the last step of a
-//! submission is `step_reduce` (the same update plus per-workgroup sums), followed by
+//! Two state buffers ping-pong: a step reads one and writes the other, one dispatch per
+//! step. Every [`LbmConfig::check_every`] steps the last step of a submission is `step_reduce` (the same update plus per-workgroup sums), followed by
 //! `reduce`, which adds the partials in a fixed order; only those three totals are read back.
 //! The state is read back once at the end, and φ is formed on the host by the CPU code.
 
 use super::cpu::{Setup, steady};
 use super::{Injection, LbmConfig, LbmSolution, LbmTrace, Q, StepRecord};
-use crate::gpu::{
-    GpuContext, GpuError, PassTimer, Timer, storage_buffer, storage_entry, uniform_entry,
+use crate::gpu::kernel::{
+    Access, Checkpointed, Checkpoints, Kernel, KernelSpec, run_checkpointed, struct_layout,
+    time_pass,
 };
+use crate::gpu::{GpuContext, GpuError, storage_buffer, uniform_buffer};
 use crate::method::Stop as Status;
 use crate::{Grid, Medium, SolverError};
 use bytemuck::{Pod, Zeroable};
 use std::time::Instant;
-use wgpu::util::DeviceExt;
-
-/// The shader source, validated by naga in the crate's tests.
-pub const SHADER: &str = include_str!("lbm.wgsl");
 
 /// Threads per workgroup of every kernel in `lbm.wgsl`.
 const WG: u32 = 256;
 
-/// Uniforms of `lbm.wgsl` (`Params` there, same field order; 32 bytes).
+/// Uniforms of `lbm.wgsl` (`Params` there, same fields in the same order; 32 bytes).
+/// Checked against the WGSL by `tests/kernel_contract.rs`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
-pub struct GpuParams {
-    /// Grid size.
-    pub nx: u32,
-    /// Grid size.
-    pub ny: u32,
-    /// Grid size.
-    pub nz: u32,
+pub(crate) struct GpuParams {
+    nx: u32,
+    ny: u32,
+    nz: u32,
     /// Sites nx·ny·nz.
-    pub sites: u32,
+    sites: u32,
     /// Threads per dispatch row (x workgroups × 256).
-    pub row: u32,
+    row: u32,
     /// 1: re-emit the rest density (paper); 0: absorbed density is removed.
-    pub reemit: u32,
+    reemit: u32,
     /// 1 if the emission buffer holds a source.
-    pub has_src: u32,
+    has_src: u32,
     /// Workgroups of one step (partials of `step_reduce`).
-    pub groups: u32,
+    groups: u32,
 }
+
+/// What this host code assumes about `lbm.wgsl`: bindings by name, entry points, the `ISO`
+/// override and the layout of `Params`.
+pub(crate) const SPEC: KernelSpec = KernelSpec {
+    label: "lbm.wgsl",
+    source: include_str!("lbm.wgsl"),
+    bindings: &[
+        ("P", Access::Uniform),
+        ("fin", Access::Read),
+        ("fout", Access::ReadWrite),
+        ("ss", Access::Read),
+        ("sa", Access::Read),
+        ("emission", Access::Read),
+        ("table", Access::Read),
+        ("partials", Access::ReadWrite),
+        ("totals", Access::ReadWrite),
+    ],
+    entries: &["step", "step_reduce", "reduce"],
+    constants: &["ISO"],
+    uniforms: &[(
+        "P",
+        struct_layout!(GpuParams; nx, ny, nz, sites, row, reemit, has_src, groups),
+    )],
+};
 
 /// The GPU state of one lattice-Boltzmann solve: buffers, pipelines and bind groups built
 /// once for one problem size.
@@ -58,6 +78,7 @@ pub struct GpuLbm<'a> {
     /// The two state buffers; `parity` says which holds the current state.
     states: [wgpu::Buffer; 2],
     totals: wgpu::Buffer,
+    /// The `step`, `step_reduce` and `reduce` pipelines.
     pipelines: [wgpu::ComputePipeline; 3],
     /// Bind group reading state 0 and writing state 1, and the reverse.
     binds: [wgpu::BindGroup; 2],
@@ -65,7 +86,8 @@ pub struct GpuLbm<'a> {
     check_every: u32,
     steps: usize,
     history: Vec<StepRecord>,
-    timer: PassTimer,
+    /// Total density at the previous checkpoint (NaN before the first).
+    previous: f64,
 }
 
 impl<'a> GpuLbm<'a> {
@@ -106,13 +128,7 @@ impl<'a> GpuLbm<'a> {
                 limit_name: "u32 workgroup count",
                 adapter: ctx.info().name.clone(),
             })?;
-        let max = ctx.limits().max_compute_workgroups_per_dimension;
-        let dispatch = if groups <= max {
-            [groups, 1]
-        } else {
-            [max, groups.div_ceil(max)]
-        };
-        ctx.check_workgroups("the LBM step", dispatch[1])?;
+        let dispatch = ctx.split_workgroups("the LBM step", groups)?;
         let groups = dispatch[0] * dispatch[1];
         let setup = Setup::<f32>::new(medium, injection, config)?;
         let params = GpuParams {
@@ -134,93 +150,51 @@ impl<'a> GpuLbm<'a> {
         }
         let needed = 2 * state_bytes + 2 * sites * 4 + 12 * u64::from(groups);
         let zeros = vec![0u8; state_bytes as usize];
-        let (states, ss, sa, emission, table_buf, partials, totals, uniform) = ctx.allocating(
+        let b = ctx.allocating(
             &format!("LBM buffers for a {nx}x{ny}x{nz} lattice"),
             needed,
             |d| {
-                let states = [
-                    storage_buffer(d, "lbm state 0", &zeros),
-                    storage_buffer(d, "lbm state 1", &zeros),
-                ];
-                let ss = storage_buffer(d, "sigma_s", bytemuck::cast_slice(&setup.ss));
-                let sa = storage_buffer(d, "sigma_a", bytemuck::cast_slice(&setup.sa));
                 let src: &[f32] = setup.src.as_deref().unwrap_or(&[]);
-                let emission = storage_buffer(d, "emission", bytemuck::cast_slice(src));
-                let table_buf = storage_buffer(d, "lbm table", bytemuck::cast_slice(&table));
-                let partials = storage_buffer(d, "lbm partials", &vec![0u8; 12 * groups as usize]);
-                let totals = storage_buffer(d, "lbm totals", &[0u8; 16]);
-                let uniform = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("lbm params"),
-                    contents: bytemuck::bytes_of(&params),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
-                (
-                    states, ss, sa, emission, table_buf, partials, totals, uniform,
-                )
+                Buffers {
+                    params: uniform_buffer(d, "lbm params", &params),
+                    states: [
+                        storage_buffer(d, "lbm state 0", &zeros),
+                        storage_buffer(d, "lbm state 1", &zeros),
+                    ],
+                    ss: storage_buffer(d, "sigma_s", bytemuck::cast_slice(&setup.ss)),
+                    sa: storage_buffer(d, "sigma_a", bytemuck::cast_slice(&setup.sa)),
+                    emission: storage_buffer(d, "emission", bytemuck::cast_slice(src)),
+                    table: storage_buffer(d, "lbm table", bytemuck::cast_slice(&table)),
+                    partials: storage_buffer(d, "lbm partials", &vec![0u8; 12 * groups as usize]),
+                    totals: storage_buffer(d, "lbm totals", &[0u8; 16]),
+                }
             },
         )?;
         drop(zeros);
         let iso = setup.scatter.is_none();
-        let (pipelines, binds) = ctx.allocating("LBM pipelines", 0, |device| {
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("lbm.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-            });
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("lbm"),
-                entries: &[
-                    uniform_entry(0),
-                    storage_entry(1, true),
-                    storage_entry(2, false),
-                    storage_entry(3, true),
-                    storage_entry(4, true),
-                    storage_entry(5, true),
-                    storage_entry(6, true),
-                    storage_entry(7, false),
-                    storage_entry(8, false),
+        let kernel = Kernel::new(ctx, &SPEC, &[("ISO", if iso { 1.0 } else { 0.0 })])?;
+        let pipelines = [
+            kernel.pipeline("step")?,
+            kernel.pipeline("step_reduce")?,
+            kernel.pipeline("reduce")?,
+        ];
+        let bind = |from: usize| {
+            kernel.bind(
+                ctx,
+                &[
+                    ("P", &b.params),
+                    ("fin", &b.states[from]),
+                    ("fout", &b.states[1 - from]),
+                    ("ss", &b.ss),
+                    ("sa", &b.sa),
+                    ("emission", &b.emission),
+                    ("table", &b.table),
+                    ("partials", &b.partials),
+                    ("totals", &b.totals),
                 ],
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("lbm"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let constants = [("ISO", if iso { 1.0 } else { 0.0 })];
-            let pipelines = crate::gpu::compute_pipelines(
-                device,
-                &pipeline_layout,
-                &module,
-                ["step", "step_reduce", "reduce"],
-                &constants,
-            );
-            let binds = [0usize, 1].map(|from| {
-                let bufs = [
-                    &uniform,
-                    &states[from],
-                    &states[1 - from],
-                    &ss,
-                    &sa,
-                    &emission,
-                    &table_buf,
-                    &partials,
-                    &totals,
-                ];
-                let entries: Vec<wgpu::BindGroupEntry> = bufs
-                    .iter()
-                    .enumerate()
-                    .map(|(b, buf)| wgpu::BindGroupEntry {
-                        binding: b as u32,
-                        resource: buf.as_entire_binding(),
-                    })
-                    .collect();
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("lbm"),
-                    layout: &layout,
-                    entries: &entries,
-                })
-            });
-            (pipelines, binds)
-        })?;
+            )
+        };
+        let binds = [bind(0)?, bind(1)?];
         ctx.check_lost()?;
         let mut setup = setup;
         setup.setup_seconds = t0.elapsed().as_secs_f64();
@@ -228,15 +202,15 @@ impl<'a> GpuLbm<'a> {
             ctx,
             setup,
             dispatch,
-            states,
-            totals,
+            states: b.states,
+            totals: b.totals,
             pipelines,
             binds,
             parity: 0,
             check_every: config.check_every,
             steps: 0,
             history: Vec::new(),
-            timer: PassTimer::new(ctx),
+            previous: f64::NAN,
         })
     }
 
@@ -258,7 +232,7 @@ impl<'a> GpuLbm<'a> {
 
     /// Records `n` steps into `pass` (one dispatch each, alternating the ping-pong bind
     /// groups) and advances the step count; the caller submits.
-    pub fn record_steps(&mut self, pass: &mut wgpu::ComputePass<'_>, n: u32) {
+    pub(crate) fn record_steps(&mut self, pass: &mut wgpu::ComputePass<'_>, n: u32) {
         pass.set_pipeline(&self.pipelines[0]);
         for _ in 0..n {
             pass.set_bind_group(0, &self.binds[self.parity], &[]);
@@ -269,7 +243,7 @@ impl<'a> GpuLbm<'a> {
     }
 
     /// Records one step with the reduction of its totals (`step_reduce`, then `reduce`).
-    pub fn record_checkpoint(&mut self, pass: &mut wgpu::ComputePass<'_>) {
+    pub(crate) fn record_checkpoint(&mut self, pass: &mut wgpu::ComputePass<'_>) {
         pass.set_pipeline(&self.pipelines[1]);
         pass.set_bind_group(0, &self.binds[self.parity], &[]);
         pass.dispatch_workgroups(self.dispatch[0], self.dispatch[1], 1);
@@ -279,71 +253,20 @@ impl<'a> GpuLbm<'a> {
         self.steps += 1;
     }
 
-    /// Runs `n` ≥ 1 steps in one submission, the last one a checkpoint, and returns its totals.
-    pub fn run(&mut self, n: u32) -> Result<StepRecord, SolverError> {
-        let n = n.max(1);
-        let mut timer = std::mem::take(&mut self.timer);
-        let out = self.submit(n, &mut timer, true);
-        self.timer = timer;
-        let bytes = out?;
-        let t: &[f32] = bytemuck::cast_slice(&bytes);
-        let rec = StepRecord {
-            step: self.steps,
-            total_density: f64::from(t[0]),
-            injected: self.setup.injected,
-            outflow: f64::from(t[1]),
-            absorbed: f64::from(t[2]),
-        };
-        self.history.push(rec);
-        Ok(rec)
-    }
-
     /// Benchmarks: records `n` plain steps in one timed compute pass, submits, waits and
     /// returns their seconds (GPU timestamps when available, else the wall clock).
     pub fn time_steps(&mut self, n: u32) -> Result<f64, SolverError> {
-        let mut timer = PassTimer::new(self.ctx);
-        self.submit(n, &mut timer, false)?;
-        Ok(timer.seconds())
-    }
-
-    /// Records `n` steps (the last a checkpoint if `checkpoint`) into one timed pass, submits,
-    /// waits and returns the 16 bytes of totals if `checkpoint` (else empty).
-    fn submit(
-        &mut self,
-        n: u32,
-        timer: &mut PassTimer,
-        checkpoint: bool,
-    ) -> Result<Vec<u8>, SolverError> {
-        // wgpu handles are reference-counted: a clone lets the pass borrow `self` mutably.
-        let (ctx, totals) = (self.ctx, self.totals.clone());
-        Ok(timer.run_pass(
-            ctx,
-            "lbm steps",
-            |pass| {
-                if checkpoint {
-                    self.record_steps(pass, n - 1);
-                    self.record_checkpoint(pass);
-                } else {
-                    self.record_steps(pass, n);
-                }
-            },
-            checkpoint.then_some((&totals, 16)),
-        )?)
+        let ctx = self.ctx;
+        Ok(time_pass(ctx, "lbm steps", |pass| {
+            self.record_steps(pass, n)
+        })?)
     }
 
     /// The current state (post-collision densities, z-slab layout), read back.
     pub fn state(&self) -> Result<Vec<f32>, SolverError> {
-        let encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("lbm readback"),
-            });
         let bytes = (Q * self.setup.grid.len() * 4) as u64;
-        let out = self
-            .ctx
-            .submit_and_read(encoder, &[(&self.states[self.parity], bytes)])?;
-        Ok(bytemuck::cast_slice(&out[0]).to_vec())
+        let out = self.ctx.read_buffer(&self.states[self.parity], bytes)?;
+        Ok(bytemuck::pod_collect_to_vec(&out))
     }
 
     /// Steps to the steady state (checked every `check_every` steps) or the cap, calling
@@ -352,53 +275,90 @@ impl<'a> GpuLbm<'a> {
         mut self,
         mut observer: impl FnMut(usize, f64),
     ) -> Result<LbmSolution<f32>, SolverError> {
-        let t0 = Instant::now();
-        let tol = self.setup.tolerance;
-        let max = self.setup.max_steps;
-        let mut status = Status::Cap;
-        let mut prev = f64::NAN;
-        while self.steps < max {
-            let k = (max - self.steps).min(self.check_every as usize) as u32;
-            let rec = self.run(k)?;
-            observer(rec.step, rec.total_density);
-            let t = rec.total_density;
-            if !t.is_finite() {
-                status = Status::NonFinite;
-                break;
-            }
-            if steady(prev, t, k as usize, tol) {
-                status = Status::Converged;
-                break;
-            }
-            prev = t;
-        }
-        let wall = t0.elapsed().as_secs_f64();
+        let (ctx, max, every) = (self.ctx, self.setup.max_steps, self.check_every);
+        let cap = Status::Cap;
+        let run = run_checkpointed(ctx, &mut self, "lbm steps", max, every, cap, &mut observer)?;
         let state = self.state()?;
-        let (phi, rho) = self.setup.fields(&state);
-        let timer = self.timer.timer();
-        let seconds = match timer {
-            Timer::GpuTimestamps => self.timer.seconds(),
-            Timer::WallClock => wall,
-        };
+        Ok(self.solution(&state, run))
+    }
+
+    /// The solution record of a finished solve, from the final state.
+    fn solution(self, state: &[f32], run: Checkpoints<Status>) -> LbmSolution<f32> {
+        let (phi, rho) = self.setup.fields(state);
         let trace = LbmTrace {
             rho,
             history: self.history,
             clamped_sites: self.setup.clamped,
         };
-        Ok(super::solution(
+        super::solution(
             self.setup.grid,
             phi,
             trace,
             self.steps,
-            status,
-            seconds,
+            run.stop,
+            run.seconds,
             self.setup.setup_seconds,
-            timer,
-        ))
+            run.timer,
+        )
     }
 
     /// As [`GpuLbm::solve_observed`] without an observer.
     pub fn solve(self) -> Result<LbmSolution<f32>, SolverError> {
         self.solve_observed(|_, _| {})
+    }
+}
+
+/// The buffers of one solve, named as the bindings of `lbm.wgsl` (`states` are `fin` and
+/// `fout`, swapped every step).
+struct Buffers {
+    params: wgpu::Buffer,
+    states: [wgpu::Buffer; 2],
+    ss: wgpu::Buffer,
+    sa: wgpu::Buffer,
+    emission: wgpu::Buffer,
+    table: wgpu::Buffer,
+    partials: wgpu::Buffer,
+    totals: wgpu::Buffer,
+}
+
+impl Checkpointed for GpuLbm<'_> {
+    type Stop = Status;
+
+    /// `n` − 1 plain steps, then one with the reduction of its totals.
+    fn record(&mut self, pass: &mut wgpu::ComputePass<'_>, n: u32) {
+        self.record_steps(pass, n.saturating_sub(1));
+        self.record_checkpoint(pass);
+    }
+
+    /// The three totals (density, outflow, absorbed) and a pad.
+    fn readback(&self) -> (wgpu::Buffer, u64) {
+        (self.totals.clone(), 16)
+    }
+
+    fn checkpoint(
+        &mut self,
+        n: u32,
+        bytes: &[u8],
+        observer: &mut dyn FnMut(usize, f64),
+    ) -> Option<Status> {
+        let t: Vec<f32> = bytemuck::pod_collect_to_vec(bytes);
+        let rec = StepRecord {
+            step: self.steps,
+            total_density: f64::from(t[0]),
+            injected: self.setup.injected,
+            outflow: f64::from(t[1]),
+            absorbed: f64::from(t[2]),
+        };
+        self.history.push(rec);
+        observer(rec.step, rec.total_density);
+        let total = rec.total_density;
+        if !total.is_finite() {
+            return Some(Status::NonFinite);
+        }
+        if steady(self.previous, total, n as usize, self.setup.tolerance) {
+            return Some(Status::Converged);
+        }
+        self.previous = total;
+        None
     }
 }

@@ -1,7 +1,8 @@
 // Lattice-Boltzmann lighting on the GPU (f32): one thread per site pulls the 19 upstream
 // post-collision densities (or the boundary inflow), collides with LB Eqs 4-6 and writes the
 // 19 results to the other buffer (ping-pong). The host wrapper is `lbm/gpu.rs`; `Params`
-// mirrors its `#[repr(C)] GpuParams`. Same layout and arithmetic order as `lbm/cpu.rs`:
+// mirrors its `#[repr(C)] GpuParams` and the bindings its `SPEC` (checked by
+// `tests/kernel_contract.rs`). Same layout and arithmetic order as `lbm/cpu.rs`:
 // direction i of site (x, y, z) at ((z * 19 + i) * ny + y) * nx + x.
 //
 // `step_reduce` is `step` plus per-workgroup sums of (arriving density, outflow, removed
