@@ -8,6 +8,10 @@ figures:
 figures-quick:
     cargo run --release -p experiments --bin figures -- --quick --out /tmp/scatterbench-quick
 
+# Re-render results/README.md from the committed results without running anything (seconds)
+figures-report:
+    cargo run --release -p experiments --bin figures -- --report-only
+
 # All tests (the command CI runs)
 test:
     cargo test --workspace --release

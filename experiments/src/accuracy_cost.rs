@@ -25,19 +25,19 @@
 //! 2 %, 1 %: the fastest point whose debiased error reaches it), `references.csv` and
 //! `meta.json`.
 
-use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress, workspace_root};
-use crate::images::{relative_noise, relative_rmse, relative_rmse_debiased};
+use crate::common::{BackendArgs, CommonArgs, Ctx, list_item, progress};
+use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::methods::Renderer;
 use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Section, table};
+pub use crate::scenes::{Prepared, errors, load, parse_resolution, render_reference, scene_paths};
 use anyhow::{Context, Result, bail};
 use reference::effects::{PtComponents, render_components};
 use reference::pathtracer::{Contributions, RenderSettings};
 use serde::Serialize;
 use solvers::method::{MethodRef, Tolerance};
 use solvers::pipeline::{self, ChannelImages, PipelineConfig};
-use solvers::scene::{EffectSelection, Effects, Scene, SceneFile};
 use solvers::{Backend, Precision};
-use std::path::PathBuf;
 use std::time::Instant;
 
 /// The datasets of the atlas (scene files relative to the workspace root).
@@ -65,8 +65,8 @@ pub struct Args {
     pub reference_spp: Option<u32>,
     /// Samples per pixel of the path tracer's own points, each ≥ 16 (default
     /// 16,64,256,1024,2048; 16,32 with --quick).
-    #[arg(long)]
-    pub spp: Option<String>,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<u32>)]
+    pub spp: Option<Vec<u32>>,
     /// Methods to run (names from the registry, comma-separated; default all).
     #[arg(long)]
     pub methods: Option<String>,
@@ -107,40 +107,6 @@ pub struct Point {
     pub error_multiple: f64,
     /// What else the method reports (iterations, passes).
     pub detail: String,
-}
-
-/// A scene prepared for the atlas: its channels, effect set and reference.
-#[derive(Debug)]
-pub struct Prepared {
-    /// File stem.
-    pub name: String,
-    /// Monochrome scene per colour channel (coarsened, resolution overridden).
-    pub channels: Vec<Scene>,
-    /// The file's `[effects]` restriction.
-    pub selection: EffectSelection,
-    /// The effects rendered.
-    pub effects: Effects,
-    /// Reference per channel.
-    pub reference: Vec<PtComponents>,
-    /// Seconds the reference took.
-    pub reference_seconds: f64,
-}
-
-impl Prepared {
-    /// The reference's own relative noise, √Σse²/√Σr² of the total image.
-    pub fn noise(&self) -> f64 {
-        let r: Vec<&[f64]> = self
-            .reference
-            .iter()
-            .map(|c| c.total.mean.as_slice())
-            .collect();
-        let se: Vec<&[f64]> = self
-            .reference
-            .iter()
-            .map(|c| c.total.stderr.as_slice())
-            .collect();
-        relative_noise(&se, &r)
-    }
 }
 
 /// A method setting.
@@ -342,80 +308,6 @@ fn run_grid(job: &Job<'_>, method: &MethodRef) -> Result<Run> {
     })
 }
 
-/// Loads, coarsens and re-frames a scene file (no reference yet: [`render_reference`]).
-pub fn load(
-    path: &std::path::Path,
-    coarsen: usize,
-    resolution: Option<[usize; 2]>,
-) -> Result<Prepared> {
-    let file = SceneFile::load(path).with_context(|| format!("loading {}", path.display()))?;
-    let name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "scene".into());
-    let mut channels = file.channels();
-    for ch in &mut channels {
-        if coarsen > 1 {
-            let q = ch.medium.emission.clone();
-            ch.medium = pipeline::restrict::restrict(&ch.medium, &q, coarsen, 0)
-                .with_context(|| format!("coarsening {name} by {coarsen}"))?;
-        }
-        if let (Some(res), Some(cam)) = (resolution, ch.camera.as_mut()) {
-            cam.resolution = res;
-        }
-    }
-    let config = PipelineConfig::default();
-    let (_, effects) = pipeline::effects_of(&channels, &file.effects, &config)
-        .with_context(|| format!("the effects of {name}"))?;
-    Ok(Prepared {
-        name,
-        channels,
-        selection: file.effects.clone(),
-        effects,
-        reference: Vec::new(),
-        reference_seconds: 0.0,
-    })
-}
-
-/// Renders the path-traced reference of every channel (`spp` ≥ 16 samples per pixel,
-/// up to 32 batches).
-pub fn render_reference(scene: &mut Prepared, spp: u32, seed: u64) -> Result<()> {
-    let settings = RenderSettings {
-        spp,
-        seed,
-        batches: 32.min(spp),
-        contributions: Contributions::all(),
-    };
-    let t0 = Instant::now();
-    scene.reference = scene
-        .channels
-        .iter()
-        .map(|ch| render_components(ch, &scene.effects, &settings))
-        .collect::<Result<Vec<_>, _>>()
-        .with_context(|| format!("path-traced reference of {}", scene.name))?;
-    scene.reference_seconds = t0.elapsed().as_secs_f64();
-    Ok(())
-}
-
-/// The errors of a run against the prepared reference: (total, debiased, single, multiple).
-pub fn errors(scene: &Prepared, images: &[ChannelImages]) -> (f64, f64, f64, f64) {
-    let pick = |f: fn(&ChannelImages) -> &Vec<f64>| -> Vec<&[f64]> {
-        images.iter().map(|c| f(c).as_slice()).collect()
-    };
-    let refs = |f: fn(&PtComponents) -> &Vec<f64>| -> Vec<&[f64]> {
-        scene.reference.iter().map(|c| f(c).as_slice()).collect()
-    };
-    let total = pick(|c| &c.total);
-    let rt = refs(|c| &c.total.mean);
-    let se = refs(|c| &c.total.stderr);
-    (
-        relative_rmse(&total, &rt),
-        relative_rmse_debiased(&total, &rt, &se),
-        relative_rmse(&pick(|c| &c.single), &refs(|c| &c.single.mean)),
-        relative_rmse(&pick(|c| &c.multiple), &refs(|c| &c.multiple.mean)),
-    )
-}
-
 /// The reference's noise row.
 #[derive(Debug, Clone, Serialize)]
 pub struct ReferenceRow {
@@ -518,44 +410,16 @@ pub fn pareto(points: &[&Point]) -> Vec<(f64, f64)> {
     front
 }
 
-/// Parses `W,H` (both > 0).
-pub fn parse_resolution(s: &str) -> Result<[usize; 2]> {
-    let v: Vec<usize> = parse_list("resolution", s)?;
-    match v.as_slice() {
-        [w, h] if *w > 0 && *h > 0 => Ok([*w, *h]),
-        _ => bail!("--resolution must be W,H with W, H > 0, got `{s}`"),
-    }
-}
-
-/// Scene files from a comma-separated list; relative paths that do not exist from the
-/// current directory are taken from the workspace root.
-pub fn scene_paths(list: &str) -> Result<Vec<PathBuf>> {
-    let root = workspace_root();
-    let v: Vec<PathBuf> = list
-        .split(',')
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-        .map(|s| {
-            let p = PathBuf::from(s);
-            if p.is_absolute() || p.exists() {
-                p
-            } else {
-                root.join(p)
-            }
-        })
-        .collect();
-    if v.is_empty() {
-        bail!("--scenes: no scene files given");
-    }
-    Ok(v)
-}
-
 /// Runs the atlas; returns its points.
 pub fn run(args: &Args) -> Result<Vec<Point>> {
+    crate::experiment::run::<AccuracyCost>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     let quick = args.common.quick;
     let ref_spp = args.reference_spp.unwrap_or(if quick { 256 } else { 4096 });
     let spp: Vec<u32> = match &args.spp {
-        Some(s) => parse_list("spp", s)?,
+        Some(v) => v.clone(),
         None if quick => vec![16, 32],
         None => vec![16, 64, 256, 1024, 2048],
     };
@@ -601,7 +465,8 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
         "methods": methods.iter().map(|m| m.name.clone()).collect::<Vec<_>>(),
         "targets": TARGETS,
     });
-    let mut out = Output::new("accuracy_cost", &args.common, params)?;
+    ctx.start(params)?;
+    let out = ctx;
     out.record("backends", backends.meta());
 
     let mut points = Vec::new();
@@ -670,16 +535,15 @@ pub fn run(args: &Args) -> Result<Vec<Point>> {
             bar.inc(1);
         }
         bar.finish_and_clear();
-        plot_scene(&out, &scene.name, &points)?;
+        plot_scene(out, &scene.name, &points)?;
     }
     out.csv("points.csv", &points)?;
     out.csv("references.csv", &refs)?;
     out.csv("fastest.csv", &fastest(&points))?;
-    out.finish()?;
     Ok(points)
 }
 
-fn plot_scene(out: &Output, scene: &str, points: &[Point]) -> Result<()> {
+fn plot_scene(out: &Ctx, scene: &str, points: &[Point]) -> Result<()> {
     let mine: Vec<&Point> = points.iter().filter(|p| p.scene == scene).collect();
     let mut keys: Vec<(String, String)> = mine
         .iter()
@@ -726,4 +590,170 @@ fn plot_scene(out: &Output, scene: &str, points: &[Point]) -> Result<()> {
         &Axis::log("relative RMSE vs path-traced reference"),
         &series,
     )
+}
+
+/// The accuracy vs time atlas in the registry.
+#[derive(Debug)]
+pub struct AccuracyCost;
+
+impl Experiment for AccuracyCost {
+    const NAME: &'static str = "accuracy_cost";
+    const TITLE: &'static str = "Accuracy vs time atlas";
+    const BACKEND: BackendSupport = BackendSupport::Flag;
+    type Args = Args;
+    type Summary = Vec<Point>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(args: &Args) -> Vec<Promise> {
+        let mut p = vec![
+            Promise::csv(
+                "points.csv",
+                &[
+                    "scene",
+                    "method",
+                    "setting",
+                    "backend",
+                    "seconds",
+                    "error",
+                    "error_stderr",
+                    "error_debiased",
+                    "error_single",
+                    "error_multiple",
+                    "detail",
+                ],
+            ),
+            Promise::csv(
+                "references.csv",
+                &["scene", "spp", "seconds", "noise", "channels", "effects"],
+            ),
+            Promise::csv(
+                "fastest.csv",
+                &[
+                    "scene",
+                    "target",
+                    "method",
+                    "setting",
+                    "backend",
+                    "seconds",
+                    "error",
+                    "resolvable",
+                ],
+            ),
+        ];
+        // Plots are named after the scene, which the registered datasets name after their file.
+        for path in scene_paths(&args.scenes).unwrap_or_default() {
+            if let Some(stem) = path.file_stem() {
+                p.push(Promise::file(format!(
+                    "pareto_{}.png",
+                    stem.to_string_lossy()
+                )));
+            }
+        }
+        p
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let fastest = s.csv("fastest.csv")?;
+        fastest.require(&[
+            "scene",
+            "target",
+            "method",
+            "setting",
+            "backend",
+            "seconds",
+            "error",
+            "resolvable",
+        ])?;
+        let points = s.csv("points.csv")?;
+        points.require(&[
+            "scene",
+            "method",
+            "setting",
+            "seconds",
+            "error",
+            "error_stderr",
+        ])?;
+        let mut out = String::from(
+            "Every method setting on every dataset against a path-traced reference. `error_stderr` in `points.csv` \
+             is the reference's own relative noise, the floor below which errors cannot be resolved. Methods: the \
+             path tracer at increasing spp, and the grid pipeline with each registered multiple-scattering method \
+             at diffusion downsampling 4, 2, 1, tolerances and precisions (`setting`).\n\n\
+             ### Fastest to 5 %, 2 % and 1 % relative RMSE (debiased: the reference's variance removed)\n\n",
+        );
+        let rows = fastest.rows().map(|r| {
+            let what = if r.get("method").is_empty() {
+                "none reached it"
+            } else {
+                r.get("method")
+            };
+            let floor = if r.flag("resolvable") {
+                ""
+            } else {
+                " (below the reference noise)"
+            };
+            vec![
+                r.get("scene").to_string(),
+                format!("{:.0} %", 100.0 * r.num("target")),
+                format!("{what}{floor}"),
+                r.get("setting").to_string(),
+                r.get("backend").to_string(),
+                r.fixed("seconds", 2),
+                r.fixed("error", 4),
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "scene", "target", "fastest", "setting", "backend", "time (s)", "error",
+            ],
+            rows,
+        ));
+        out.push_str("\n### Best error per method and scene (and its time)\n\n");
+        let mut rows = Vec::new();
+        for sc in points.distinct("scene") {
+            for m in points.distinct("method") {
+                if let Some(p) = points
+                    .rows()
+                    .filter(|p| p.get("scene") == sc && p.get("method") == m)
+                    .min_by(|a, b| a.num("error").total_cmp(&b.num("error")))
+                {
+                    rows.push(vec![
+                        sc.clone(),
+                        m.clone(),
+                        p.fixed("error", 4),
+                        p.get("setting").to_string(),
+                        p.fixed("seconds", 2),
+                        p.fixed("error_stderr", 4),
+                    ]);
+                }
+            }
+        }
+        out.push_str(&table(
+            &[
+                "scene",
+                "method",
+                "best error",
+                "setting",
+                "time (s)",
+                "reference noise",
+            ],
+            rows,
+        ));
+        out.push('\n');
+        out.push_str(
+            &s.pngs(
+                points
+                    .distinct("scene")
+                    .iter()
+                    .map(|sc| format!("pareto_{sc}.png")),
+            ),
+        );
+        Ok(out)
+    }
 }

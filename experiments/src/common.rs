@@ -20,13 +20,59 @@ pub struct CommonArgs {
     pub no_progress: bool,
 }
 
+/// Where the grid solvers run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BackendChoice {
+    /// The CPU, in the experiment's `--precision`.
+    Cpu,
+    /// The GPU (wgpu, f32).
+    Gpu,
+    /// Both, CPU first.
+    Both,
+}
+
+impl std::fmt::Display for BackendChoice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            BackendChoice::Cpu => "cpu",
+            BackendChoice::Gpu => "gpu",
+            BackendChoice::Both => "both",
+        })
+    }
+}
+
+/// A `--precision` flag's value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum PrecisionArg {
+    /// `f32`.
+    F32,
+    /// `f64`.
+    F64,
+}
+
+impl PrecisionArg {
+    /// The solvers' precision.
+    pub fn precision(self) -> solvers::Precision {
+        match self {
+            PrecisionArg::F32 => solvers::Precision::F32,
+            PrecisionArg::F64 => solvers::Precision::F64,
+        }
+    }
+
+    /// `f32` or `f64`.
+    pub fn name(self) -> &'static str {
+        self.precision().name()
+    }
+}
+
 /// The `--backend` flag of every experiment that runs a grid solver.
 #[derive(Debug, Clone, clap::Args)]
 pub struct BackendArgs {
     /// Where the solvers run: `cpu`, `gpu` (wgpu, f32; adapter from WGPU_ADAPTER_NAME /
     /// WGPU_BACKEND) or `both`. `--precision` applies to CPU runs; GPU runs are f32.
-    #[arg(long, default_value = "cpu")]
-    pub backend: String,
+    #[arg(long, value_enum, default_value_t = BackendChoice::Cpu)]
+    pub backend: BackendChoice,
 }
 
 /// The backends an experiment runs on, with the GPU context they borrow.
@@ -37,14 +83,12 @@ pub struct Backends {
 }
 
 impl BackendArgs {
-    /// Parses the flag and opens the GPU if one is asked for (an error, with the reason,
-    /// if there is none).
+    /// Opens the GPU if one is asked for (an error, with the reason, if there is none).
     pub fn open(&self) -> Result<Backends> {
-        let (cpu, gpu) = match self.backend.trim() {
-            "cpu" => (true, false),
-            "gpu" => (false, true),
-            "both" => (true, true),
-            other => anyhow::bail!("--backend must be cpu, gpu or both, got `{other}`"),
+        let (cpu, gpu) = match self.backend {
+            BackendChoice::Cpu => (true, false),
+            BackendChoice::Gpu => (false, true),
+            BackendChoice::Both => (true, true),
         };
         let gpu = if gpu {
             let ctx =
@@ -54,6 +98,15 @@ impl BackendArgs {
             None
         };
         Ok(Backends { cpu, gpu })
+    }
+
+    /// The plot-file suffixes a run writes (see [`Backends::plot_suffix`]): `""`, and
+    /// `"_gpu"` too with `both`.
+    pub fn plot_suffixes(&self) -> Vec<&'static str> {
+        match self.backend {
+            BackendChoice::Both => vec!["", "_gpu"],
+            _ => vec![""],
+        }
     }
 }
 
@@ -106,36 +159,79 @@ pub fn workspace_root() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from("."))
 }
 
-/// An experiment's output directory, created on construction, plus its provenance record.
+/// The context an experiment runs in: its output directory, its provenance record
+/// (`meta.json`: parameters, timings, backends), and its progress bars.
+///
+/// [`crate::experiment::run`] makes one from the shared flags, hands it to
+/// [`Experiment::run`](crate::experiment::Experiment::run), and writes `meta.json` when the
+/// run returns. The directory is created by [`Ctx::start`], once the flags are validated.
 #[derive(Debug)]
-pub struct Output {
+pub struct Ctx {
     /// Where files go.
     pub dir: PathBuf,
     name: String,
+    quick: bool,
+    no_progress: bool,
     started: Instant,
     timings: Vec<(String, f64)>,
     params: serde_json::Value,
     extra: serde_json::Map<String, serde_json::Value>,
 }
 
-impl Output {
-    /// Creates `args.out` or `results/<name>`.
-    pub fn new(name: &str, args: &CommonArgs, params: impl Serialize) -> Result<Self> {
+/// The former name of [`Ctx`].
+pub type Output = Ctx;
+
+impl Ctx {
+    /// The context of experiment `name`: `args.out`, or `results/<name>` (not created yet).
+    pub fn for_run(name: &str, args: &CommonArgs) -> Self {
         let dir = args
             .out
             .clone()
             .unwrap_or_else(|| workspace_root().join("results").join(name));
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("creating output directory {}", dir.display()))?;
-        let params = serde_json::to_value(params).context("serialising parameters")?;
-        Ok(Self {
+        Self {
             dir,
             name: name.to_string(),
+            quick: args.quick,
+            no_progress: args.no_progress,
             started: Instant::now(),
             timings: Vec::new(),
-            params,
+            params: serde_json::Value::Null,
             extra: serde_json::Map::new(),
-        })
+        }
+    }
+
+    /// [`Ctx::for_run`] then [`Ctx::start`] (for callers outside the registry).
+    pub fn new(name: &str, args: &CommonArgs, params: impl Serialize) -> Result<Self> {
+        let mut ctx = Self::for_run(name, args);
+        ctx.start(params)?;
+        Ok(ctx)
+    }
+
+    /// Records the run's resolved parameters for `meta.json` and creates the directory.
+    pub fn start(&mut self, params: impl Serialize) -> Result<()> {
+        std::fs::create_dir_all(&self.dir)
+            .with_context(|| format!("creating output directory {}", self.dir.display()))?;
+        self.params = serde_json::to_value(params).context("serialising parameters")?;
+        Ok(())
+    }
+
+    /// Whether this is a CI-sized (`--quick`) run.
+    pub fn quick(&self) -> bool {
+        self.quick
+    }
+
+    /// Opens the backends of `--backend` and records them (with the GPU adapter) in
+    /// `meta.json`.
+    pub fn backends(&mut self, args: &BackendArgs) -> Result<Backends> {
+        let b = args.open()?;
+        self.record("backends", b.meta());
+        Ok(b)
+    }
+
+    /// A progress bar over `len` steps (hidden with `--no-progress` or when stderr is no
+    /// terminal).
+    pub fn progress(&self, len: u64, what: &str) -> ProgressBar {
+        bar(len, self.no_progress, what)
     }
 
     /// Path of a file in the output directory.
@@ -241,7 +337,11 @@ pub fn machine() -> serde_json::Value {
 
 /// A progress bar over `len` steps (hidden with `--no-progress` or when stderr is no terminal).
 pub fn progress(len: u64, args: &CommonArgs, what: &str) -> ProgressBar {
-    if args.no_progress {
+    bar(len, args.no_progress, what)
+}
+
+fn bar(len: u64, hidden: bool, what: &str) -> ProgressBar {
+    if hidden {
         return ProgressBar::hidden();
     }
     let pb = ProgressBar::new(len);
@@ -254,17 +354,48 @@ pub fn progress(len: u64, args: &CommonArgs, what: &str) -> ProgressBar {
     pb
 }
 
-/// Parses a comma-separated list (`"0.1,0.5"`), naming the flag in errors.
+/// Parses one item of a comma-separated list flag (`value_parser = list_item::<f64>`, with
+/// `value_delimiter = ','`): surrounding blanks are ignored, an empty item is an error (so
+/// an empty list is one too).
+pub fn list_item<T: std::str::FromStr>(s: &str) -> std::result::Result<T, String>
+where
+    T::Err: std::fmt::Display,
+{
+    let t = s.trim();
+    if t.is_empty() {
+        return Err("empty list item (give at least one value, comma-separated)".into());
+    }
+    t.parse::<T>()
+        .map_err(|e| format!("cannot parse `{t}`: {e}"))
+}
+
+/// The command-line spellings of `values`, comma-separated (`zero,analytic`), for
+/// `meta.json`.
+pub fn value_names<T: clap::ValueEnum>(values: &[T]) -> String {
+    values
+        .iter()
+        .filter_map(|v| v.to_possible_value().map(|p| p.get_name().to_string()))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// Parses a comma-separated list (`"0.1,0.5"`), naming the flag in errors; an empty list is
+/// an error.
 pub fn parse_list<T: std::str::FromStr>(flag: &str, s: &str) -> Result<Vec<T>>
 where
     T::Err: std::fmt::Display,
 {
-    s.split(',')
+    let v: Vec<T> = s
+        .split(',')
         .filter(|t| !t.trim().is_empty())
         .map(|t| {
             t.trim()
                 .parse::<T>()
                 .map_err(|e| anyhow::anyhow!("--{flag}: cannot parse `{t}`: {e}"))
         })
-        .collect()
+        .collect::<Result<_>>()?;
+    if v.is_empty() {
+        anyhow::bail!("--{flag}: give at least one value (comma-separated)");
+    }
+    Ok(v)
 }

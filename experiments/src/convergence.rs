@@ -7,8 +7,10 @@
 //! (c) the effect of the extinction floor σ_ε on convergence in f32 (the paper uses its
 //!     Nebulae dataset; we use the same cloud, whose vacuum is where σ_ε acts).
 
-use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress};
+use crate::common::{BackendArgs, CommonArgs, Ctx, list_item, progress};
+use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use solvers::fld::{self, Boundary, FldConfig, FluxLimiter};
@@ -31,17 +33,17 @@ pub struct Args {
     #[arg(long)]
     pub n: Option<usize>,
     /// SOR factors for (a).
-    #[arg(long, default_value = "1.0,1.3,1.5,1.7,1.8,1.9")]
-    pub omega: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "1.0,1.3,1.5,1.7,1.8,1.9")]
+    pub omega: Vec<f64>,
     /// Resolutions for (b). Default 17,25,33,51,65,81 (13,17,25 with --quick).
-    #[arg(long)]
-    pub resolutions: Option<String>,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<usize>)]
+    pub resolutions: Option<Vec<usize>>,
     /// SOR factor for (b) and (c).
     #[arg(long, default_value_t = 1.8)]
     pub omega_sweep: f64,
     /// σ_ε·L values for (c).
-    #[arg(long, default_value = "1e-1,1e-2,1e-3,1e-4,1e-5,1e-6")]
-    pub sigma_eps: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "1e-1,1e-2,1e-3,1e-4,1e-5,1e-6")]
+    pub sigma_eps: Vec<f64>,
     /// Iteration cap per solve.
     #[arg(long, default_value_t = 6000)]
     pub max_iterations: usize,
@@ -102,16 +104,21 @@ struct Job {
 
 /// Runs the experiment; returns the `iterations.csv` rows.
 pub fn run(args: &Args) -> Result<Vec<IterRow>> {
+    crate::experiment::run::<Convergence>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<IterRow>> {
     let q = args.common.quick;
     let n = args.n.unwrap_or(if q { 25 } else { 51 });
-    let omegas: Vec<f64> = parse_list("omega", &args.omega)?;
-    let resolutions: Vec<usize> = parse_list(
-        "resolutions",
-        args.resolutions
-            .as_deref()
-            .unwrap_or(if q { "13,17,25" } else { "17,25,33,51,65,81" }),
-    )?;
-    let eps: Vec<f64> = parse_list("sigma-eps", &args.sigma_eps)?;
+    let omegas: Vec<f64> = args.omega.clone();
+    let resolutions: Vec<usize> = args.resolutions.clone().unwrap_or_else(|| {
+        if q {
+            vec![13, 17, 25]
+        } else {
+            vec![17, 25, 33, 51, 65, 81]
+        }
+    });
+    let eps: Vec<f64> = args.sigma_eps.clone();
     for &o in omegas.iter().chain([&args.omega_sweep]) {
         if !(o > 0.0 && o < 2.0) {
             bail!("SOR factor {o} is outside (0, 2)");
@@ -164,7 +171,8 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
     }
     let params = serde_json::json!({"n": n, "omega": omegas, "resolutions": resolutions, "omega_sweep": args.omega_sweep, "sigma_eps_times_L": eps, "max_iterations": args.max_iterations, "seed": args.seed, "limiter": "lp"});
     let backends = args.backend.open()?;
-    let mut out = Output::new("convergence", &args.common, params)?;
+    ctx.start(params)?;
+    let out = ctx;
     out.record("backends", backends.meta());
     let kinds = backends.list(Precision::F64).len();
     let pb = progress((jobs.len() * kinds) as u64, &args.common, "convergence");
@@ -213,7 +221,7 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
         let res: Vec<&ResidualRow> = residuals.iter().filter(|r| r.backend == kind).collect();
         let its: Vec<&IterRow> = iters.iter().filter(|r| r.backend == kind).collect();
         plots(
-            &out,
+            out,
             args,
             n,
             &omegas,
@@ -224,14 +232,13 @@ pub fn run(args: &Args) -> Result<Vec<IterRow>> {
             backends.plot_suffix(kind),
         )?;
     }
-    out.finish()?;
     Ok(iters)
 }
 
 /// The three panels of Fig 4 for one backend.
 #[allow(clippy::too_many_arguments)]
 fn plots(
-    out: &Output,
+    out: &Ctx,
     args: &Args,
     n: usize,
     omegas: &[f64],
@@ -368,4 +375,202 @@ fn solve(
         backend: backend.kind(),
     };
     Ok((row, sol.trace.residuals))
+}
+
+/// FLD Fig 4 in the registry.
+#[derive(Debug)]
+pub struct Convergence;
+
+impl Experiment for Convergence {
+    const NAME: &'static str = "convergence";
+    const TITLE: &'static str =
+        "FLD Fig 4: convergence (spherical cloud in vacuum, Perlin emission, FLD-LP)";
+    const BACKEND: BackendSupport = BackendSupport::Flag;
+    type Args = Args;
+    type Summary = Vec<IterRow>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(args: &Args) -> Vec<Promise> {
+        let mut p = vec![
+            Promise::csv(
+                "residuals.csv",
+                &[
+                    "case",
+                    "omega",
+                    "n",
+                    "sigma_eps",
+                    "iteration",
+                    "residual",
+                    "theta",
+                    "precision",
+                    "backend",
+                ],
+            ),
+            Promise::csv(
+                "iterations.csv",
+                &[
+                    "case",
+                    "omega",
+                    "n",
+                    "sigma_eps",
+                    "iterations",
+                    "seconds",
+                    "timer",
+                    "converged",
+                    "theta",
+                    "precision",
+                    "backend",
+                ],
+            ),
+        ];
+        for s in args.backend.plot_suffixes() {
+            for f in [
+                "fig4a_residual_vs_iteration",
+                "fig4b_iterations_vs_resolution",
+                "fig4c_sigma_eps",
+            ] {
+                p.push(Promise::file(format!("{f}{s}.png")));
+            }
+        }
+        p
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let t = s.csv("iterations.csv")?;
+        t.require(&[
+            "case",
+            "omega",
+            "n",
+            "sigma_eps",
+            "theta",
+            "precision",
+            "iterations",
+            "converged",
+            "seconds",
+        ])?;
+        let mut out = s.pngs([
+            "fig4a_residual_vs_iteration.png",
+            "fig4b_iterations_vs_resolution.png",
+            "fig4c_sigma_eps.png",
+        ]);
+        out.push('\n');
+        let rows = t.rows().map(|r| {
+            vec![
+                format!("`{}`", r.get("case")),
+                r.get("omega").to_string(),
+                r.get("n").to_string(),
+                r.sci("sigma_eps", 0),
+                r.get("theta").to_string(),
+                format!("{} {}", r.get("backend"), r.get("precision")),
+                format!(
+                    "{}{}",
+                    r.get("iterations"),
+                    if r.flag("converged") { "" } else { " (cap)" }
+                ),
+                r.fixed("seconds", 2),
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "case",
+                "ω",
+                "n",
+                "σε",
+                "θ",
+                "backend",
+                "iterations",
+                "solve (s)",
+            ],
+            rows,
+        ));
+        out.push_str(
+            "\n`sor`: our default D under-relaxation θ = 0.5; `sor_theta1`: FLD Algorithm 1 verbatim (θ = 1); \
+             `resolution`: Fig 4b; `sigma_eps`: Fig 4c in f32 (tolerance 10⁻⁴). See `solvers::fld` for why θ = 0.5 \
+             is the default.\n",
+        );
+        out.push_str(&bench());
+        Ok(out)
+    }
+}
+
+/// The committed diffusion benchmarks (`cargo bench -p benches`), curated (empty if none).
+fn bench() -> String {
+    use crate::report::{Table, short_device};
+    let dir = crate::common::workspace_root().join("results/bench");
+    let mut out = String::new();
+    if let Ok(t) = Table::read(&dir.join("diffusion_cpu.csv")) {
+        let rows = t.rows().map(|r| {
+            vec![
+                r.get("method").to_string(),
+                r.get("n").to_string(),
+                r.get("precision").to_string(),
+                r.fixed("ms_per_iter", 3),
+                r.fixed("mvox_per_s", 0),
+                r.fixed("effective_gbs", 1),
+                r.fixed("triad_gbs", 1),
+                r.fixed("ratio_triad", 2),
+            ]
+        });
+        out.push_str(
+            "\n### Benchmark: one red-black iteration vs memory bandwidth (CPU, last committed \
+             `cargo bench -p benches` run, [`bench/diffusion_cpu.csv`](bench/diffusion_cpu.csv))\n\n",
+        );
+        out.push_str(&table(
+            &[
+                "method",
+                "n",
+                "precision",
+                "ms/iteration",
+                "Mvoxel/s",
+                "effective GB/s",
+                "STREAM triad GB/s",
+                "÷ triad",
+            ],
+            rows,
+        ));
+    }
+    if let Ok(t) = Table::read(&dir.join("diffusion_gpu.csv")) {
+        let rows = t.rows().map(|r| {
+            vec![
+                short_device(r.get("adapter")),
+                r.get("method").to_string(),
+                r.get("n").to_string(),
+                r.fixed("ms_per_iter", 3),
+                r.fixed("mvox_per_s", 1),
+                r.fixed("effective_gbs", 2),
+                r.fixed("copy_gbs", 2),
+                r.fixed("ratio_copy", 3),
+                r.get("timer").to_string(),
+            ]
+        });
+        out.push_str(
+            "\n### GPU backend (`cargo bench -p benches --bench diffusion_gpu`, \
+             [`bench/diffusion_gpu.csv`](bench/diffusion_gpu.csv))\n\n\
+             Effective bandwidth counts 9 f32 values per voxel for FLD, 7 for CDA, against the same device's copy \
+             bandwidth measured in the same run. On `llvmpipe` (Mesa's CPU Vulkan driver) these are emulation \
+             numbers, not GPU numbers.\n\n",
+        );
+        out.push_str(&table(
+            &[
+                "adapter",
+                "method",
+                "n",
+                "ms/iteration",
+                "Mvoxel/s",
+                "effective GB/s",
+                "copy GB/s",
+                "÷ copy",
+                "timer",
+            ],
+            rows,
+        ));
+    }
+    out
 }

@@ -15,8 +15,10 @@
 //! reported as not converged). Budget: the full run (N up to 128, CPU f32) is a few minutes
 //! on 2 cores.
 
-use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress};
+use crate::common::{BackendArgs, CommonArgs, Ctx, PrecisionArg, list_item, progress};
+use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use solvers::Precision;
@@ -34,17 +36,17 @@ pub struct Args {
     #[command(flatten)]
     pub backend: BackendArgs,
     /// Lattice sizes N. Default 16,32,64,128 (12,16,24 with --quick).
-    #[arg(long)]
-    pub sizes: Option<String>,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<usize>)]
+    pub sizes: Option<Vec<usize>>,
     /// Tolerances on the relative change of the total density per step.
-    #[arg(long, default_value = "1e-3,1e-4,1e-5")]
-    pub tolerance: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "1e-3,1e-4,1e-5")]
+    pub tolerance: Vec<f64>,
     /// Step cap as a multiple of N.
     #[arg(long, default_value_t = 10)]
     pub max_steps_factor: usize,
     /// Precision of CPU runs.
-    #[arg(long, default_value = "f32")]
-    pub precision: String,
+    #[arg(long, value_enum, default_value = "f32")]
+    pub precision: PrecisionArg,
 }
 
 /// `history.csv` row: one step (CPU) or checkpoint (GPU).
@@ -118,29 +120,31 @@ fn steps_to(history: &[StepRecord], tol: f64) -> Option<usize> {
 
 /// Runs the experiment; returns the `steps.csv` rows (for `figures`).
 pub fn run(args: &Args) -> Result<Vec<StepsRow>> {
+    crate::experiment::run::<LbmConvergence>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepsRow>> {
     let sizes: Vec<usize> = match &args.sizes {
-        Some(s) => parse_list("sizes", s)?,
+        Some(s) => s.clone(),
         None if args.common.quick => vec![12, 16, 24],
         None => vec![16, 32, 64, 128],
     };
     if let Some(n) = sizes.iter().find(|&&n| n < 4) {
         bail!("--sizes: {n} is too small (at least 4)");
     }
-    let tols: Vec<f64> = parse_list("tolerance", &args.tolerance)?;
+    let tols: Vec<f64> = args.tolerance.clone();
     if tols.is_empty() || tols.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
         bail!("--tolerance needs positive values, got {:?}", tols);
     }
     let tmin = tols.iter().cloned().fold(f64::INFINITY, f64::min);
-    let precision: Precision = args
-        .precision
-        .parse()
-        .with_context(|| format!("--precision `{}`", args.precision))?;
+    let precision: Precision = args.precision.precision();
     let backends = args.backend.open()?;
     let params = serde_json::json!({
         "sizes": sizes, "tolerance": tols, "max_steps_factor": args.max_steps_factor,
-        "precision": args.precision, "light": [0.4, 0.5, -1.0], "albedo": 0.9, "seed": 7,
+        "precision": args.precision.name(), "light": [0.4, 0.5, -1.0], "albedo": 0.9, "seed": 7,
     });
-    let mut out = Output::new("lbm_convergence", &args.common, params)?;
+    ctx.start(params)?;
+    let out = ctx;
     out.record("backends", backends.meta());
     let list = backends.list(precision);
     let series = ["paper", "physical"];
@@ -281,6 +285,160 @@ pub fn run(args: &Args) -> Result<Vec<StepsRow>> {
             &sv,
         )?;
     }
-    out.finish()?;
     Ok(rows)
+}
+
+/// LB Fig 5 in the registry.
+#[derive(Debug)]
+pub struct LbmConvergence;
+
+impl Experiment for LbmConvergence {
+    const NAME: &'static str = "lbm_convergence";
+    const TITLE: &'static str = "Lattice-Boltzmann lighting: LB Fig 5, steps to steady state vs N";
+    const BACKEND: BackendSupport = BackendSupport::Flag;
+    type Args = Args;
+    type Summary = Vec<StepsRow>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(args: &Args) -> Vec<Promise> {
+        let mut p = vec![
+            Promise::csv(
+                "history.csv",
+                &[
+                    "series",
+                    "n",
+                    "backend",
+                    "step",
+                    "total_density",
+                    "injected",
+                    "outflow",
+                    "rel_change",
+                ],
+            ),
+            Promise::csv(
+                "steps.csv",
+                &[
+                    "series",
+                    "n",
+                    "backend",
+                    "precision",
+                    "tolerance",
+                    "steps",
+                    "steps_over_n",
+                    "converged",
+                    "balance",
+                    "seconds",
+                    "mlups",
+                ],
+            ),
+        ];
+        for s in args.backend.plot_suffixes() {
+            p.push(Promise::file(format!("fig5_total_density{s}.png")));
+            p.push(Promise::file(format!("steps_vs_n{s}.png")));
+        }
+        p
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let t = s.csv("steps.csv")?;
+        t.require(&[
+            "series",
+            "n",
+            "backend",
+            "precision",
+            "tolerance",
+            "steps",
+            "converged",
+            "steps_over_n",
+            "balance",
+            "mlups",
+        ])?;
+        let mut out = String::from(
+            "Noise cloud lit by a directional light, albedo 0.9, the paper's model. `paper`: per-site σt = \
+             0.25·density (LB Section 4; optical size grows with N); `physical`: the same physical cloud at every N. \
+             Steps until the relative change of the total density per step is below the tolerance (LB Section 5 \
+             observes about 2N).\n\n",
+        );
+        let rows = t.rows().map(|r| {
+            vec![
+                r.get("series").to_string(),
+                r.get("n").to_string(),
+                format!("{}-{}", r.get("backend"), r.get("precision")),
+                r.sci("tolerance", 0),
+                format!(
+                    "{}{}",
+                    r.get("steps"),
+                    if r.flag("converged") { "" } else { " (cap)" }
+                ),
+                r.fixed("steps_over_n", 2),
+                r.sci("balance", 1),
+                r.fixed("mlups", 1),
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "series",
+                "N",
+                "backend",
+                "tolerance",
+                "steps",
+                "steps/N",
+                "(injected − outflow)/injected",
+                "MLUPS",
+            ],
+            rows,
+        ));
+        out.push('\n');
+        out.push_str(&s.pngs(["fig5_total_density.png", "steps_vs_n.png"]));
+        out.push_str(&bench());
+        Ok(out)
+    }
+}
+
+/// The committed `cargo bench --bench lbm` table, curated (empty if there is none).
+fn bench() -> String {
+    let Ok(t) =
+        crate::report::Table::read(&crate::common::workspace_root().join("results/bench/lbm.csv"))
+    else {
+        return String::new();
+    };
+    let rows = t.rows().map(|r| {
+        vec![
+            r.get("backend").to_string(),
+            crate::report::short_device(r.get("device")),
+            r.get("n").to_string(),
+            r.get("precision").to_string(),
+            r.fixed("ms_per_step", 2),
+            r.fixed("mlups", 1),
+            r.fixed("effective_gbs", 1),
+            r.fixed("ratio_triad", 2),
+            r.fixed("ratio_copy", 2),
+        ]
+    });
+    format!(
+        "\n### Benchmark (`cargo bench -p benches --bench lbm`, last committed run, [`bench/lbm.csv`](bench/lbm.csv))\n\n\
+         Effective bandwidth counts 19 values read and 19 written per site, against the STREAM triad and copy of the \
+         same machine (CPU) or the device copy probe (GPU; `llvmpipe` is Mesa's CPU Vulkan driver).\n\n{}",
+        crate::report::table(
+            &[
+                "backend",
+                "device",
+                "N",
+                "precision",
+                "ms/step",
+                "MLUPS",
+                "effective GB/s",
+                "÷ triad",
+                "÷ copy"
+            ],
+            rows
+        )
+    )
 }

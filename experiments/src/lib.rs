@@ -4,12 +4,13 @@
 //! solvers, and writes `results/<name>/` (or `--out DIR`): CSV tables, PNG plots, and a
 //! `meta.json` with the command line, git revision, machine and timings. `--quick` shrinks
 //! every experiment to a CI-sized run. The `figures` binary runs them all and writes
-//! `results/README.md`.
+//! `results/README.md` from the [`experiment::EXPERIMENTS`] registry.
 #![deny(missing_docs)]
 
 pub mod accuracy_cost;
 pub mod common;
 pub mod convergence;
+pub mod experiment;
 pub mod i3rc_step_cloud;
 pub mod images;
 pub mod lbm_convergence;
@@ -24,4 +25,6 @@ pub mod pt_render;
 pub mod pt_slab;
 pub mod render;
 pub mod renderings;
+pub mod report;
+pub mod scenes;
 pub mod transport_references;

@@ -23,11 +23,13 @@
 //! |t| = 5; pixels failing the corrected test in yellow), and `meta.json` (with Mitsuba's
 //! version and variants under `parameters.mitsuba`).
 
-use crate::common::{CommonArgs, Output};
+use crate::common::{CommonArgs, Ctx, list_item};
+use crate::experiment::{BackendSupport, Experiment, FigureRun, Promise};
+use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
 use reference::compare::{Comparison, ImageEstimate, compare};
-use reference::mitsuba::{MitsubaConfig, MitsubaSettings, render};
+use reference::mitsuba::{MitsubaConfig, MitsubaError, MitsubaSettings, render};
 use reference::pathtracer::{Contributions, Image, MIN_BATCHES, RenderSettings, render_image};
 use serde::Serialize;
 use solvers::scene::SceneFile;
@@ -57,8 +59,8 @@ pub struct Args {
     #[arg(long, default_value_t = MIN_BATCHES)]
     pub batches: u32,
     /// Mitsuba variants, comma-separated (e.g. `scalar_rgb,llvm_ad_rgb`).
-    #[arg(long, default_value = "scalar_rgb")]
-    pub variant: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<String>, default_value = "scalar_rgb")]
+    pub variant: Vec<String>,
     /// Family-wise significance level of the per-pixel test.
     #[arg(long, default_value_t = 0.01)]
     pub alpha: f64,
@@ -162,8 +164,20 @@ fn parse_resolution(s: &str) -> Result<[usize; 2]> {
     Ok([parse(w)?, parse(h)?])
 }
 
+/// The stem of the scene file (`scenes/cloud.toml` → `cloud`), naming its output folder.
+fn scene_stem(scene: &std::path::Path) -> String {
+    scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into())
+}
+
 /// Runs the comparison; returns one row per variant.
 pub fn run(args: &Args) -> Result<Vec<Row>> {
+    crate::experiment::run::<MitsubaCompare>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
     let file = SceneFile::load(&args.scene)
         .with_context(|| format!("loading scene {}", args.scene.display()))?;
     let mut scene = file.scene;
@@ -192,18 +206,20 @@ pub fn run(args: &Args) -> Result<Vec<Row>> {
         );
     }
     let spp_per_render = spp.div_ceil(args.renders);
-    let variants: Vec<String> = args
-        .variant
-        .split(',')
-        .map(|v| v.trim().to_string())
-        .filter(|v| !v.is_empty())
-        .collect();
+    let variants: Vec<String> = args.variant.clone();
     if variants.is_empty() {
         bail!("--variant: give at least one Mitsuba variant");
     }
     let mut versions = Vec::new();
     for v in &variants {
-        versions.push(MitsubaConfig::new(v).probe()?);
+        // Not installed is not a failure of the comparison: `figures` skips it with the hint.
+        let version = MitsubaConfig::new(v).probe().map_err(|e| match e {
+            MitsubaError::NotInstalled { .. } => {
+                anyhow::Error::new(crate::experiment::Unavailable(e.to_string()))
+            }
+            e => anyhow::Error::new(e),
+        })?;
+        versions.push(version);
     }
     let scene_name = args
         .scene
@@ -222,13 +238,10 @@ pub fn run(args: &Args) -> Result<Vec<Row>> {
             "python": MitsubaConfig::default_python().display().to_string(),
         },
     });
-    // One directory per scene: results/mitsuba_compare/<scene stem>/ unless --out is given.
-    let stem = args
-        .scene
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "scene".into());
-    let mut out = Output::new(&format!("mitsuba_compare/{stem}"), &args.common, params)?;
+    // One directory per scene: results/mitsuba_compare/<scene stem>/ unless --out is given
+    // (see `MitsubaCompare::dir_name`).
+    ctx.start(params)?;
+    let out = ctx;
 
     let settings = RenderSettings {
         spp,
@@ -306,7 +319,7 @@ pub fn run(args: &Args) -> Result<Vec<Row>> {
             mitsuba_version: r.version.clone(),
         });
         if i == 0 {
-            write_pixels(&out, &ours_est, &r.image, &c)?;
+            write_pixels(out, &ours_est, &r.image, &c)?;
             let exposure = exposure(&ours_est.mean, &r.image.mean);
             radiance_png(&out.path("ours.png"), &ours_est, exposure)?;
             radiance_png(&out.path("mitsuba.png"), &r.image, exposure)?;
@@ -314,7 +327,6 @@ pub fn run(args: &Args) -> Result<Vec<Row>> {
         }
     }
     out.csv("comparison.csv", &rows)?;
-    out.finish()?;
     Ok(rows)
 }
 
@@ -341,7 +353,7 @@ fn estimate(image: &Image, batches: u32) -> ImageEstimate {
 }
 
 fn write_pixels(
-    out: &Output,
+    out: &Ctx,
     ours: &ImageEstimate,
     theirs: &ImageEstimate,
     c: &Comparison,
@@ -436,4 +448,143 @@ fn difference_png(path: &Path, c: &Comparison, width: usize, height: usize) -> R
             RGBColor(fade, fade, 255)
         }
     })
+}
+
+/// The comparison with Mitsuba 3 in the registry: one run per example scene.
+#[derive(Debug)]
+pub struct MitsubaCompare;
+
+impl Experiment for MitsubaCompare {
+    const NAME: &'static str = "mitsuba_compare";
+    const TITLE: &'static str = "Path tracer vs Mitsuba 3";
+    const BACKEND: BackendSupport = BackendSupport::CpuOnly("both path tracers run on the CPU");
+    type Args = Args;
+    type Summary = Vec<Row>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn dir_name(args: &Args) -> String {
+        format!("{}/{}", Self::NAME, scene_stem(&args.scene))
+    }
+
+    fn figure_runs(quick: bool) -> Vec<FigureRun> {
+        // Quick runs keep 1024 paths per pixel (on 32×32): enough power for the claims that
+        // `tests/registry.rs` checks on them, at about the cost of Mitsuba's start-up.
+        let spp: &[&str] = if quick { &["--spp", "1024"] } else { &[] };
+        ["cloud_directional", "emissive_sphere"]
+            .into_iter()
+            .map(|scene| {
+                let path = crate::common::workspace_root()
+                    .join("scenes")
+                    .join(format!("{scene}.toml"));
+                FigureRun::new(
+                    format!("{}/{scene}", Self::NAME),
+                    format!("{}: {scene}", Self::TITLE),
+                )
+                .args(["--scene".to_string(), path.display().to_string()])
+                .args(spp.iter().copied())
+            })
+            .collect()
+    }
+
+    fn promises(_args: &Args) -> Vec<Promise> {
+        vec![
+            Promise::csv(
+                "comparison.csv",
+                &[
+                    "scene",
+                    "variant",
+                    "pixels",
+                    "fraction_passing",
+                    "mean_ours",
+                    "mean_ours_stderr",
+                    "mean_mitsuba",
+                    "mean_mitsuba_stderr",
+                    "rel_diff",
+                    "mean_z",
+                    "alpha",
+                    "ours_paths_per_second",
+                    "mitsuba_paths_per_second",
+                    "speedup",
+                    "mitsuba_version",
+                ],
+            ),
+            Promise::csv(
+                "pixels.csv",
+                &[
+                    "x",
+                    "y",
+                    "ours",
+                    "ours_stderr",
+                    "mitsuba",
+                    "mitsuba_stderr",
+                    "t",
+                    "p",
+                    "pass",
+                ],
+            ),
+            Promise::file("ours.png"),
+            Promise::file("mitsuba.png"),
+            Promise::file("difference.png"),
+        ]
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let t = s.csv("comparison.csv")?;
+        t.require(&[
+            "variant",
+            "fraction_passing",
+            "mean_ours",
+            "mean_ours_stderr",
+            "mean_mitsuba",
+            "mean_mitsuba_stderr",
+            "rel_diff",
+            "speedup",
+            "alpha",
+        ])?;
+        let mut out = String::from(
+            "Per-pixel Welch t-test with Šidák correction (family-wise α in the table), image means with standard \
+             errors, and paths per second of both renderers measured in the same run.\n\n",
+        );
+        let rows = t.rows().map(|r| {
+            vec![
+                format!("`{}`", r.get("variant")),
+                r.get("alpha").to_string(),
+                r.fixed("fraction_passing", 4),
+                format!(
+                    "{} ± {}",
+                    r.sci("mean_ours", 4),
+                    r.sci("mean_ours_stderr", 1)
+                ),
+                format!(
+                    "{} ± {}",
+                    r.sci("mean_mitsuba", 4),
+                    r.sci("mean_mitsuba_stderr", 1)
+                ),
+                r.sci("rel_diff", 2),
+                r.fixed("speedup", 2),
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "Mitsuba variant",
+                "α",
+                "pixels passing",
+                "mean, ours",
+                "mean, Mitsuba",
+                "relative difference",
+                "speed-up (paths/s)",
+            ],
+            rows,
+        ));
+        out.push('\n');
+        out.push_str(&s.pngs(["ours.png", "mitsuba.png", "difference.png"]));
+        Ok(out)
+    }
 }

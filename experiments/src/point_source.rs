@@ -12,13 +12,16 @@
 //! Errors (in `runs.csv` and `results/README.md`): relative L2 error of φ against Grosjean
 //! over all voxels with 0 < τ < 1 ("near the source"), and over the +x profile up to τ = 1.5.
 
-use crate::common::{BackendArgs, CommonArgs, Output, parse_list, progress};
+use crate::common::{BackendArgs, CommonArgs, Ctx, PrecisionArg, list_item, progress, value_names};
+use crate::experiment::{BackendSupport, Experiment, FigureRun, Promise};
 use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Row, Section, table};
 use anyhow::{Context, Result, bail};
-use reference::point_source::{PointSource, Solution};
+use reference::point_source::{PointSource as Exact, Solution};
 use serde::Serialize;
 use solvers::fld::{self, Boundary, FldConfig, FluxLimiter, KnudsenSigma};
 use solvers::{Backend, Precision, scenes};
+use std::fmt::Write as _;
 
 /// Flags of `point_source`.
 #[derive(Debug, Clone, clap::Parser)]
@@ -37,21 +40,21 @@ pub struct Args {
     #[arg(long, default_value_t = 4.0)]
     pub tau_extent: f64,
     /// Albedos.
-    #[arg(long, default_value = "0.1,0.3,0.5,0.7,0.9,0.99")]
-    pub albedo: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0.1,0.3,0.5,0.7,0.9,0.99")]
+    pub albedo: Vec<f64>,
     /// Flux limiters: cda, sum, max, kershaw, larsen<n>, lp, or `all`.
-    #[arg(long, default_value = "all")]
-    pub limiter: String,
+    #[arg(long, value_delimiter = ',', value_parser = limiter_item, default_value = "all")]
+    pub limiter: Vec<String>,
     /// Boundaries: zero, analytic, or auto (CDA both, FLD zero).
-    #[arg(long, default_value = "auto")]
-    pub boundary: String,
+    #[arg(long, value_delimiter = ',', value_enum, default_value = "auto")]
+    pub boundary: Vec<BoundaryArg>,
     /// Also run the Levermore–Pomraning effective-albedo Knudsen number (R with α σt) for
     /// every FLD limiter.
     #[arg(long)]
     pub effective_albedo: bool,
     /// Precision of CPU runs: f32 or f64 (GPU runs are f32).
-    #[arg(long, default_value = "f64")]
-    pub precision: String,
+    #[arg(long, value_enum, default_value = "f64")]
+    pub precision: PrecisionArg,
     /// SOR factor (default: the Poisson optimum 2/(1 + sin(π/n))).
     #[arg(long)]
     pub omega: Option<f64>,
@@ -61,6 +64,40 @@ pub struct Args {
     /// Iteration cap per solve.
     #[arg(long, default_value_t = 20_000)]
     pub max_iterations: usize,
+}
+
+/// A `--boundary` value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BoundaryArg {
+    /// CDA with both boundaries, FLD with the zero boundary.
+    Auto,
+    /// φ = 0 outside the grid.
+    Zero,
+    /// Dirichlet values from the analytic solution (FLD Eq 27 for CDA, Grosjean for FLD).
+    Analytic,
+}
+
+/// One `--limiter` item: `all` or a limiter name (checked here, expanded by `limiter_list`).
+fn limiter_item(s: &str) -> std::result::Result<String, String> {
+    let t: String = list_item(s)?;
+    if t != "all" {
+        t.parse::<FluxLimiter>().map_err(|e| e.to_string())?;
+    }
+    Ok(t)
+}
+
+/// The limiters of `--limiter` (`all` expands to every limiter of FLD Table 2).
+fn limiter_list(items: &[String]) -> Result<Vec<FluxLimiter>> {
+    if items.iter().any(|l| l == "all") {
+        return Ok(FluxLimiter::ALL.to_vec());
+    }
+    items
+        .iter()
+        .map(|l| {
+            l.parse()
+                .map_err(|e| anyhow::anyhow!("--limiter `{l}`: {e}"))
+        })
+        .collect()
 }
 
 /// One voxel of a +x profile (`profiles.csv`).
@@ -143,15 +180,12 @@ fn knudsen_name(k: KnudsenSigma) -> &'static str {
     }
 }
 
-fn parse_limiters(s: &str) -> Result<Vec<FluxLimiter>> {
-    if s.trim() == "all" {
-        return Ok(FluxLimiter::ALL.to_vec());
-    }
-    parse_list("limiter", s)
-}
-
 /// Runs the experiment; returns the per-solve rows (for `figures`).
 pub fn run(args: &Args) -> Result<Vec<RunRow>> {
+    crate::experiment::run::<PointSource>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
     let n = args.n.unwrap_or(if args.common.quick { 31 } else { 127 });
     if n % 2 == 0 || n < 7 {
         bail!("--n must be odd and ≥ 7 so a single voxel sits at the centre, got {n}");
@@ -162,23 +196,21 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
             args.tau_extent
         );
     }
-    let albedos: Vec<f64> = parse_list("albedo", &args.albedo)?;
+    let albedos: Vec<f64> = args.albedo.clone();
     if let Some(a) = albedos.iter().find(|a| !(0.0..=1.0).contains(*a)) {
         bail!("--albedo: {a} is outside [0, 1]");
     }
-    let limiters = parse_limiters(&args.limiter)?;
-    let boundaries: Vec<&'static str> = match args.boundary.trim() {
-        "auto" => vec![],
-        s => s
-            .split(',')
-            .map(|b| match b.trim() {
-                "zero" => Ok("zero"),
-                "analytic" => Ok("analytic"),
-                other => Err(anyhow::anyhow!(
-                    "--boundary: `{other}` is not zero, analytic or auto"
-                )),
+    let limiters = limiter_list(&args.limiter)?;
+    let boundaries: Vec<&'static str> = if args.boundary.contains(&BoundaryArg::Auto) {
+        vec![]
+    } else {
+        args.boundary
+            .iter()
+            .map(|b| match b {
+                BoundaryArg::Analytic => "analytic",
+                _ => "zero",
             })
-            .collect::<Result<_>>()?,
+            .collect()
     };
     let mut cases = Vec::new();
     for &albedo in &albedos {
@@ -212,15 +244,13 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
     }
     let params = serde_json::json!({
         "n": n, "tau_extent": args.tau_extent, "albedo": albedos, "limiters": limiters.iter().map(|l| l.to_string()).collect::<Vec<_>>(),
-        "boundary": args.boundary, "effective_albedo": args.effective_albedo, "precision": args.precision,
+        "boundary": value_names(&args.boundary), "effective_albedo": args.effective_albedo, "precision": args.precision.name(),
         "omega": args.omega.unwrap_or(FldConfig::poisson_optimal_omega(n)), "tolerance": args.tolerance, "max_iterations": args.max_iterations,
     });
-    let precision: Precision = args
-        .precision
-        .parse()
-        .with_context(|| format!("--precision `{}`", args.precision))?;
+    let precision: Precision = args.precision.precision();
     let backends = args.backend.open()?;
-    let mut out = Output::new("point_source", &args.common, params)?;
+    ctx.start(params)?;
+    let out = ctx;
     out.record("backends", backends.meta());
     let list = backends.list(precision);
     let pb = progress(
@@ -278,9 +308,8 @@ pub fn run(args: &Args) -> Result<Vec<RunRow>> {
         let rs: Vec<&RunRow> = runs.iter().filter(|r| r.backend == kind).collect();
         let suffix = backends.plot_suffix(kind);
         let label = format!("{n}³, {backend}");
-        plots(&out, &albedos, &limiters, &prof, &rs, &taus, &label, suffix)?;
+        plots(out, &albedos, &limiters, &prof, &rs, &taus, &label, suffix)?;
     }
-    out.finish()?;
     Ok(runs)
 }
 
@@ -294,7 +323,7 @@ fn solve_case(
     let (medium, src) = scenes::point_source::<f64>(n, args.tau_extent, case.albedo)
         .context("building the point-source medium")?;
     let g = medium.grid;
-    let ps = PointSource::new(args.tau_extent, case.albedo)?;
+    let ps = Exact::new(args.tau_extent, case.albedo)?;
     let centre = g.center(src[0], src[1], src[2]);
     let dist = |p: [f64; 3]| {
         ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2) + (p[2] - centre[2]).powi(2))
@@ -406,7 +435,7 @@ fn solve_case(
 
 #[allow(clippy::too_many_arguments)]
 fn plots(
-    out: &Output,
+    out: &Ctx,
     albedos: &[f64],
     limiters: &[FluxLimiter],
     profiles: &[&ProfileRow],
@@ -547,4 +576,269 @@ fn plots(
         )?;
     }
     Ok(())
+}
+
+/// FLD Fig 5 and the flux-limiter comparison in the registry.
+#[derive(Debug)]
+pub struct PointSource;
+
+impl Experiment for PointSource {
+    const NAME: &'static str = "point_source";
+    const TITLE: &'static str = "FLD Fig 5: point source, numeric vs analytic";
+    const BACKEND: BackendSupport = BackendSupport::Flag;
+    type Args = Args;
+    type Summary = Vec<RunRow>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn figure_runs(quick: bool) -> Vec<FigureRun> {
+        let n_lim = if quick { 21 } else { 63 };
+        vec![
+            FigureRun::new("point_source", Self::TITLE).args(["--limiter", "cda,lp"]),
+            FigureRun::new(
+                "flux_limiters",
+                "Flux-limiter comparison on the point source",
+            )
+            .args([
+                "--limiter".to_string(),
+                "all".into(),
+                "--effective-albedo".into(),
+                "--boundary".into(),
+                "zero".into(),
+                "--n".into(),
+                n_lim.to_string(),
+            ]),
+        ]
+    }
+
+    fn promises(args: &Args) -> Vec<Promise> {
+        let mut p = vec![
+            Promise::csv(
+                "runs.csv",
+                &[
+                    "method",
+                    "limiter",
+                    "boundary",
+                    "knudsen",
+                    "albedo",
+                    "n",
+                    "precision",
+                    "backend",
+                    "omega",
+                    "iterations",
+                    "converged",
+                    "residual",
+                    "seconds",
+                    "timer",
+                    "err_grosjean_near",
+                    "err_grosjean_profile",
+                    "err_cda_near",
+                ],
+            ),
+            Promise::csv(
+                "profiles.csv",
+                &[
+                    "method",
+                    "limiter",
+                    "boundary",
+                    "albedo",
+                    "n",
+                    "tau_extent",
+                    "tau",
+                    "phi_norm",
+                ],
+            ),
+            Promise::csv(
+                "analytic.csv",
+                &["albedo", "tau", "grosjean", "cda", "transport_limit"],
+            ),
+        ];
+        let limiters = limiter_list(&args.limiter).unwrap_or_default();
+        let has = |name: &str| limiters.iter().any(|l| l.to_string() == name);
+        let auto = args.boundary.contains(&BoundaryArg::Auto);
+        let bdy = |b: BoundaryArg| auto || args.boundary.contains(&b);
+        for suffix in args.backend.plot_suffixes() {
+            if has("cda") && bdy(BoundaryArg::Analytic) {
+                p.push(Promise::file(format!(
+                    "fig5a_cda_analytic_boundary{suffix}.png"
+                )));
+            }
+            if has("cda") && bdy(BoundaryArg::Zero) {
+                p.push(Promise::file(format!(
+                    "fig5b_cda_zero_boundary{suffix}.png"
+                )));
+            }
+            if has("lp") && bdy(BoundaryArg::Zero) {
+                p.push(Promise::file(format!(
+                    "fig5c_fld_lp_zero_boundary{suffix}.png"
+                )));
+            }
+            if limiters.len() > 1 {
+                p.push(Promise::file(format!("limiter_errors{suffix}.png")));
+                for a in &args.albedo {
+                    p.push(Promise::file(format!("limiters_albedo_{a}{suffix}.png")));
+                }
+            }
+        }
+        p
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let t = s.csv("runs.csv")?;
+        t.require(&[
+            "limiter",
+            "boundary",
+            "knudsen",
+            "albedo",
+            "n",
+            "iterations",
+            "converged",
+            "seconds",
+            "err_grosjean_near",
+            "err_cda_near",
+            "backend",
+        ])?;
+        let mut out = String::new();
+        let n = t
+            .rows()
+            .next()
+            .map(|r| r.get("n").to_string())
+            .unwrap_or_default();
+        let limiters = t.distinct("limiter");
+        let find = |lim: &str, b: &str, k: &str, a: &str| {
+            t.rows().find(|r| {
+                r.get("limiter") == lim
+                    && r.get("boundary") == b
+                    && r.get("knudsen") == k
+                    && r.get("albedo") == a
+                    && r.get("backend") == t.rows().next().map_or("", |f| f.get("backend"))
+            })
+        };
+        let cell = |r: Option<Row<'_>>, col: &str| r.map_or("–".to_string(), |r| r.fixed(col, 4));
+        let _ = writeln!(
+            out,
+            "{n}³ voxels, τ = 4 across, one emitting voxel. Relative L2 error of φ over all voxels with \
+             0 < τ < 1, against Grosjean (FLD Eq 24) and, for CDA, against its own theory (FLD Eq 27). \
+             Solver: red-black SOR at ω = 2/(1 + sin(π/n)) (see `omega` and `residual` in `runs.csv`).\n"
+        );
+        // Fig 5 (a, b, c) needs CDA with both boundaries and FLD-LP; the limiter runs have no
+        // analytic boundary.
+        let fig5 = t.rows().any(|r| r.get("boundary") == "analytic");
+        if fig5 && limiters.iter().any(|l| l == "cda") && limiters.iter().any(|l| l == "lp") {
+            let rows = t.distinct("albedo").into_iter().map(|a| {
+                let lp = find("lp", "zero", "sigma_t", &a);
+                vec![
+                    a.clone(),
+                    cell(find("cda", "analytic", "sigma_t", &a), "err_cda_near"),
+                    cell(find("cda", "zero", "sigma_t", &a), "err_cda_near"),
+                    cell(find("cda", "zero", "sigma_t", &a), "err_grosjean_near"),
+                    cell(lp, "err_grosjean_near"),
+                    lp.map_or("–".into(), |r| {
+                        let c = if r.flag("converged") {
+                            ""
+                        } else {
+                            " (not converged)"
+                        };
+                        format!("{}{c}", r.get("iterations"))
+                    }),
+                    lp.map_or("–".into(), |r| r.fixed("seconds", 2)),
+                ]
+            });
+            out.push_str(&table(
+                &[
+                    "albedo α",
+                    "CDA, Eq 27 boundary: error vs Eq 27",
+                    "CDA, zero boundary: vs Eq 27",
+                    "CDA, zero boundary: vs Grosjean",
+                    "FLD-LP, zero boundary: vs Grosjean",
+                    "FLD-LP iterations",
+                    "FLD-LP solve (s)",
+                ],
+                rows,
+            ));
+            out.push('\n');
+            out.push_str(&s.pngs([
+                "fig5a_cda_analytic_boundary.png",
+                "fig5b_cda_zero_boundary.png",
+                "fig5c_fld_lp_zero_boundary.png",
+            ]));
+        }
+        if limiters.len() > 2 {
+            let mut cols: Vec<(String, &str)> = Vec::new();
+            for l in &limiters {
+                cols.push((l.clone(), "sigma_t"));
+                if t.rows()
+                    .any(|r| r.get("limiter") == l && r.get("knudsen") == "albedo_sigma_t")
+                {
+                    cols.push((l.clone(), "albedo_sigma_t"));
+                }
+            }
+            let _ = writeln!(
+                out,
+                "\nRelative L2 error against Grosjean near the source for every limiter of FLD Table 2, zero \
+                 boundary; `(ασt)` is Levermore–Pomraning's effective-albedo Knudsen number R = |∇φ|/(α σt φ). \
+                 **Bold**: the best per albedo.\n"
+            );
+            let mut header = vec!["albedo α".to_string()];
+            header.extend(cols.iter().map(|(l, k)| {
+                if *k == "albedo_sigma_t" {
+                    format!("{l} (ασt)")
+                } else {
+                    l.clone()
+                }
+            }));
+            let rows = t.distinct("albedo").into_iter().map(|a| {
+                let vals: Vec<f64> = cols
+                    .iter()
+                    .map(|(l, k)| {
+                        find(l, "zero", k, &a).map_or(f64::NAN, |r| r.num("err_grosjean_near"))
+                    })
+                    .collect();
+                let best = vals
+                    .iter()
+                    .copied()
+                    .filter(|v| v.is_finite())
+                    .fold(f64::INFINITY, f64::min);
+                let mut row = vec![a.clone()];
+                row.extend(vals.iter().map(|&v| {
+                    if v == best {
+                        format!("**{v:.4}**")
+                    } else {
+                        crate::report::fixed(v, 4)
+                    }
+                }));
+                row
+            });
+            let header: Vec<&str> = header.iter().map(String::as_str).collect();
+            out.push_str(&table(&header, rows));
+            let unconverged: Vec<String> = t
+                .rows()
+                .filter(|r| !r.flag("converged"))
+                .map(|r| {
+                    format!(
+                        "{} ({}) α={}",
+                        r.get("limiter"),
+                        r.get("knudsen"),
+                        r.get("albedo")
+                    )
+                })
+                .collect();
+            if !unconverged.is_empty() {
+                let _ = writeln!(
+                    out,
+                    "\nNot converged within the iteration cap: {}.",
+                    unconverged.join(", ")
+                );
+            }
+            out.push('\n');
+            out.push_str(&s.png("limiter_errors.png"));
+        }
+        Ok(out)
+    }
 }

@@ -10,8 +10,10 @@
 //! radial_density_stderr,collided,collided_stderr`, then reference columns), `runs.csv`
 //! (paths, seconds, paths/s per albedo), and plots.
 
-use crate::common::{CommonArgs, Output, parse_list, progress};
+use crate::common::{CommonArgs, Ctx, list_item, progress};
+use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use reference::pathtracer::{InfiniteMedium, PathSettings};
 use reference::point_source::{cda, grosjean};
@@ -34,14 +36,14 @@ pub struct Args {
     #[command(flatten)]
     pub common: CommonArgs,
     /// Single-scattering albedos c ∈ [0, 1), comma-separated.
-    #[arg(long, default_value = "0.3,0.7,0.9,0.99")]
-    pub albedo: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0.3,0.7,0.9,0.99")]
+    pub albedo: Vec<f64>,
     /// Henyey–Greenstein mean cosine(s) g ∈ (−1, 1), comma-separated (0: isotropic).
-    #[arg(long, default_value = "0")]
-    pub g: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0")]
+    pub g: Vec<f64>,
     /// Shell edges r0,r1,…,rk in mean free paths (strictly increasing, r0 ≥ 0).
-    #[arg(long, default_value = "0,0.05,0.1,0.2,0.35,0.5,0.75,1,1.5,2,2.5,3,4,5")]
-    pub edges: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0,0.05,0.1,0.2,0.35,0.5,0.75,1,1.5,2,2.5,3,4,5")]
+    pub edges: Vec<f64>,
     /// Paths per albedo (default 4e7; 2e5 with --quick).
     #[arg(long)]
     pub paths: Option<u64>,
@@ -123,31 +125,32 @@ fn shell_average(f: impl Fn(f64) -> f64, a: f64, b: f64) -> f64 {
 
 /// Runs the experiment; returns the shell rows.
 pub fn run(args: &Args) -> Result<Vec<ShellRow>> {
-    let albedos: Vec<f64> = parse_list("albedo", &args.albedo)?;
+    crate::experiment::run::<PtPointSource>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<ShellRow>> {
+    let albedos: Vec<f64> = args.albedo.clone();
     if albedos.is_empty() {
         bail!("--albedo: no values given");
     }
     if let Some(a) = albedos.iter().find(|a| !(0.0..1.0).contains(*a)) {
         bail!("--albedo: {a} is outside [0, 1)");
     }
-    let gs: Vec<f64> = parse_list("g", &args.g)?;
+    let gs: Vec<f64> = args.g.clone();
     if let Some(g) = gs.iter().find(|g| g.is_nan() || g.abs() >= 1.0) {
         bail!("--g: {g} is outside (-1, 1)");
     }
-    let edges: Vec<f64> = parse_list("edges", &args.edges)?;
+    let edges: Vec<f64> = args.edges.clone();
     let paths = args.paths.unwrap_or(if args.common.quick {
         200_000
     } else {
         DEFAULT_PATHS
     });
-    let mut out = Output::new(
-        "pt_point_source",
-        &args.common,
-        serde_json::json!({
-            "albedo": albedos, "g": gs, "edges": edges, "paths": paths,
-            "seed": args.seed, "batches": args.batches, "sigma_t": 1.0, "source_power": 1.0,
-        }),
-    )?;
+    ctx.start(serde_json::json!({
+        "albedo": albedos, "g": gs, "edges": edges, "paths": paths,
+        "seed": args.seed, "batches": args.batches, "sigma_t": 1.0, "source_power": 1.0,
+    }))?;
+    let out = ctx;
     let settings = PathSettings {
         paths,
         seed: args.seed,
@@ -232,12 +235,11 @@ pub fn run(args: &Args) -> Result<Vec<ShellRow>> {
     pb.finish_and_clear();
     out.csv("shells.csv", &rows)?;
     out.csv("runs.csv", &runs)?;
-    plots(&out, &albedos, &gs, &rows)?;
-    out.finish()?;
+    plots(out, &albedos, &gs, &rows)?;
     Ok(rows)
 }
 
-fn plots(out: &Output, albedos: &[f64], gs: &[f64], rows: &[ShellRow]) -> Result<()> {
+fn plots(out: &Ctx, albedos: &[f64], gs: &[f64], rows: &[ShellRow]) -> Result<()> {
     for &g in gs {
         // Curves first (exact solid, Grosjean dashed, both in the albedo's colour; CDA grey),
         // then the Monte Carlo shell averages on top.
@@ -328,4 +330,117 @@ fn plots(out: &Output, albedos: &[f64], gs: &[f64], rows: &[ShellRow]) -> Result
         )?;
     }
     Ok(())
+}
+
+/// The path tracer's point-source check in the registry.
+#[derive(Debug)]
+pub struct PtPointSource;
+
+impl Experiment for PtPointSource {
+    const NAME: &'static str = "pt_point_source";
+    const TITLE: &'static str = "Path tracer: point-source shells vs exact";
+    const BACKEND: BackendSupport = BackendSupport::CpuOnly("the path tracer runs on the CPU");
+    type Args = Args;
+    type Summary = Vec<ShellRow>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(args: &Args) -> Vec<Promise> {
+        let mut p = vec![
+            Promise::csv(
+                "shells.csv",
+                &[
+                    "albedo",
+                    "g",
+                    "r_inner",
+                    "r_outer",
+                    "radial_density",
+                    "radial_density_stderr",
+                    "collided",
+                    "collided_stderr",
+                    "uncollided",
+                    "uncollided_stderr",
+                    "ballistic",
+                    "z_ballistic",
+                    "exact",
+                    "exact_collided",
+                    "z",
+                    "z_collided",
+                    "grosjean",
+                    "cda",
+                    "rel_stderr",
+                ],
+            ),
+            Promise::csv(
+                "runs.csv",
+                &[
+                    "albedo",
+                    "g",
+                    "paths",
+                    "seconds",
+                    "paths_per_second",
+                    "max_rel_stderr",
+                    "max_abs_z",
+                ],
+            ),
+        ];
+        for g in &args.g {
+            p.push(Promise::file(format!("radial_density_g{g}.png")));
+            p.push(Promise::file(format!("z_ballistic_g{g}.png")));
+        }
+        if args.g.contains(&0.0) {
+            p.push(Promise::file("z_exact.png"));
+        }
+        p
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let t = s.csv("runs.csv")?;
+        t.require(&[
+            "albedo",
+            "g",
+            "paths",
+            "paths_per_second",
+            "max_rel_stderr",
+            "max_abs_z",
+        ])?;
+        let mut out = String::from(
+            "Average of 4πr²φ over each spherical shell, with batch-means standard errors, against the exact \
+             solution (z-scores in `shells.csv`). Per run:\n\n",
+        );
+        let rows = t.rows().map(|r| {
+            vec![
+                r.get("albedo").to_string(),
+                r.get("g").to_string(),
+                r.get("paths").to_string(),
+                r.sci("paths_per_second", 2),
+                r.fixed("max_rel_stderr", 4),
+                if r.get("max_abs_z").is_empty() {
+                    "—".into()
+                } else {
+                    r.fixed("max_abs_z", 2)
+                },
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "albedo",
+                "g",
+                "paths",
+                "paths/s",
+                "largest relative std. error",
+                "largest |z| vs exact",
+            ],
+            rows,
+        ));
+        out.push('\n');
+        out.push_str(&s.png("z_exact.png"));
+        Ok(out)
+    }
 }

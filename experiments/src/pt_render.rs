@@ -12,7 +12,9 @@
 //! Writes `timing.csv`, `image.csv` (x, y, mean, stderr of the majorant-grid render) and
 //! `image.png` (gamma 2.2, exposure fitted to the 99th percentile).
 
-use crate::common::{CommonArgs, Output};
+use crate::common::{CommonArgs, Ctx, value_names};
+use crate::experiment::{BackendSupport, Experiment, Promise};
+use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
 use reference::pathtracer::{
@@ -23,6 +25,15 @@ use solvers::noise::Perlin;
 use solvers::scene::{Camera, Light, Phase, Projection, Sampler, Scene};
 use solvers::{Grid, Medium};
 use std::time::Instant;
+
+/// A `--interpolation` value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum InterpolationArg {
+    /// Piecewise-constant voxels.
+    Nearest,
+    /// Trilinear between voxel centres.
+    Trilinear,
+}
 
 /// Flags of `pt_render`.
 #[derive(Debug, Clone, clap::Parser)]
@@ -47,8 +58,8 @@ pub struct Args {
     #[arg(long, default_value_t = 0.0)]
     pub g: f64,
     /// nearest or trilinear.
-    #[arg(long, default_value = "nearest")]
-    pub interpolation: String,
+    #[arg(long, value_enum, default_value = "nearest")]
+    pub interpolation: InterpolationArg,
     /// Also render with one global majorant for comparison.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub global: bool,
@@ -135,6 +146,10 @@ pub fn cloud_scene(n: usize, albedo: f64, g: f64, res: usize, seed: u64) -> Resu
 
 /// Runs the experiment; returns the timing rows.
 pub fn run(args: &Args) -> Result<Vec<TimingRow>> {
+    crate::experiment::run::<PtRender>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<TimingRow>> {
     let quick = args.common.quick;
     let n = args.n.unwrap_or(if quick { 32 } else { 128 });
     let res = args.res.unwrap_or(if quick { 24 } else { 128 });
@@ -142,21 +157,17 @@ pub fn run(args: &Args) -> Result<Vec<TimingRow>> {
     if res == 0 {
         bail!("--res must be at least 1");
     }
-    let interpolation = match args.interpolation.as_str() {
-        "nearest" => Interpolation::Nearest,
-        "trilinear" => Interpolation::Trilinear,
-        other => bail!("--interpolation: `{other}` is not nearest or trilinear"),
+    let interpolation = match args.interpolation {
+        InterpolationArg::Nearest => Interpolation::Nearest,
+        InterpolationArg::Trilinear => Interpolation::Trilinear,
     };
     let scene =
         cloud_scene(n, args.albedo, args.g, res, args.seed).context("building the cloud")?;
-    let mut out = Output::new(
-        "pt_render",
-        &args.common,
-        serde_json::json!({
-            "n": n, "res": res, "spp": spp, "albedo": args.albedo, "g": args.g,
-            "interpolation": args.interpolation, "seed": args.seed,
-        }),
-    )?;
+    ctx.start(serde_json::json!({
+        "n": n, "res": res, "spp": spp, "albedo": args.albedo, "g": args.g,
+        "interpolation": value_names(&[args.interpolation]), "seed": args.seed,
+    }))?;
+    let out = ctx;
     let settings = RenderSettings {
         spp,
         seed: args.seed,
@@ -189,7 +200,7 @@ pub fn run(args: &Args) -> Result<Vec<TimingRow>> {
             .collect();
         rows.push(TimingRow {
             majorant: name.to_string(),
-            interpolation: args.interpolation.clone(),
+            interpolation: value_names(&[args.interpolation]),
             n,
             res,
             spp,
@@ -220,7 +231,6 @@ pub fn run(args: &Args) -> Result<Vec<TimingRow>> {
         out.csv("image.csv", &pixels)?;
         write_png(&out.path("image.png"), &img)?;
     }
-    out.finish()?;
     Ok(rows)
 }
 
@@ -259,4 +269,97 @@ fn write_png(path: &std::path::Path, img: &Image) -> Result<()> {
     root.present()
         .map_err(|e| anyhow::anyhow!("writing {}: {e}", path.display()))?;
     Ok(())
+}
+
+/// The path tracer's throughput measurement in the registry.
+#[derive(Debug)]
+pub struct PtRender;
+
+impl Experiment for PtRender {
+    const NAME: &'static str = "pt_render";
+    const TITLE: &'static str = "Path tracer: throughput";
+    const BACKEND: BackendSupport = BackendSupport::CpuOnly("the path tracer runs on the CPU");
+    type Args = Args;
+    type Summary = Vec<TimingRow>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(_args: &Args) -> Vec<Promise> {
+        vec![
+            Promise::csv(
+                "timing.csv",
+                &[
+                    "majorant",
+                    "interpolation",
+                    "n",
+                    "res",
+                    "spp",
+                    "paths",
+                    "seconds",
+                    "paths_per_second",
+                    "cpu_seconds",
+                    "paths_per_cpu_second",
+                    "threads",
+                    "mean_radiance",
+                    "mean_rel_stderr",
+                ],
+            ),
+            Promise::csv("image.csv", &["x", "y", "mean", "stderr"]),
+            Promise::file("image.png"),
+        ]
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let t = s.csv("timing.csv")?;
+        t.require(&[
+            "majorant",
+            "interpolation",
+            "n",
+            "res",
+            "spp",
+            "paths_per_second",
+            "paths_per_cpu_second",
+            "threads",
+            "mean_rel_stderr",
+        ])?;
+        let mut out = String::from(
+            "Paths per second on a noise cloud, majorant grid vs one global majorant:\n\n",
+        );
+        let rows = t.rows().map(|r| {
+            vec![
+                r.get("majorant").to_string(),
+                r.get("interpolation").to_string(),
+                r.get("n").to_string(),
+                format!("{0}×{0}", r.get("res")),
+                r.get("spp").to_string(),
+                r.sci("paths_per_second", 3),
+                r.sci("paths_per_cpu_second", 3),
+                r.get("threads").to_string(),
+                r.fixed("mean_rel_stderr", 4),
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "majorant",
+                "interpolation",
+                "medium N",
+                "image",
+                "spp",
+                "paths/s",
+                "paths per CPU-second",
+                "threads",
+                "mean relative std. error",
+            ],
+            rows,
+        ));
+        out.push('\n');
+        out.push_str(&s.png("image.png"));
+        Ok(out)
+    }
 }

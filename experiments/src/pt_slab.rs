@@ -12,8 +12,10 @@
 //! T_diffuse_stderr,T_direct`, then `A`, the balance, the references with z-scores, and
 //! timings) and a plot of R and T_d.
 
-use crate::common::{CommonArgs, Output, parse_list, progress};
+use crate::common::{CommonArgs, Ctx, list_item, progress};
+use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use reference::pathtracer::{PathSettings, SlabMedium};
 use reference::transport::hfunction::plane_albedo;
@@ -30,17 +32,17 @@ pub struct Args {
     #[command(flatten)]
     pub common: CommonArgs,
     /// Optical thicknesses τ (`inf` for a semi-infinite medium), comma-separated.
-    #[arg(long, default_value = "1,inf")]
-    pub tau: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "1,inf")]
+    pub tau: Vec<f64>,
     /// Albedos c, comma-separated (c < 1 when τ = inf).
-    #[arg(long, default_value = "0.5,0.9,0.99")]
-    pub albedo: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0.5,0.9,0.99")]
+    pub albedo: Vec<f64>,
     /// Henyey–Greenstein mean cosines (0: isotropic), comma-separated.
-    #[arg(long, default_value = "0,0.5,0.9")]
-    pub g: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0,0.5,0.9")]
+    pub g: Vec<f64>,
     /// Incidence cosines μ0 ∈ (0, 1], comma-separated.
-    #[arg(long, default_value = "1,0.5")]
-    pub mu0: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "1,0.5")]
+    pub mu0: Vec<f64>,
     /// Paths per case (default 4e6; 1e5 with --quick).
     #[arg(long)]
     pub paths: Option<u64>,
@@ -109,10 +111,14 @@ pub struct SlabRow {
 
 /// Runs the experiment; returns the rows.
 pub fn run(args: &Args) -> Result<Vec<SlabRow>> {
-    let taus: Vec<f64> = parse_list("tau", &args.tau)?;
-    let albedos: Vec<f64> = parse_list("albedo", &args.albedo)?;
-    let gs: Vec<f64> = parse_list("g", &args.g)?;
-    let mu0s: Vec<f64> = parse_list("mu0", &args.mu0)?;
+    crate::experiment::run::<PtSlab>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<SlabRow>> {
+    let taus: Vec<f64> = args.tau.clone();
+    let albedos: Vec<f64> = args.albedo.clone();
+    let gs: Vec<f64> = args.g.clone();
+    let mu0s: Vec<f64> = args.mu0.clone();
     for (flag, v) in [
         ("tau", &taus),
         ("albedo", &albedos),
@@ -131,15 +137,12 @@ pub fn run(args: &Args) -> Result<Vec<SlabRow>> {
     } else {
         4_000_000
     });
-    let mut out = Output::new(
-        "pt_slab",
-        &args.common,
-        serde_json::json!({
-            "tau": taus.iter().map(|t| t.to_string()).collect::<Vec<_>>(),
-            "albedo": albedos, "g": gs, "mu0": mu0s, "paths": paths,
-            "seed": args.seed, "batches": args.batches,
-        }),
-    )?;
+    ctx.start(serde_json::json!({
+        "tau": taus.iter().map(|t| t.to_string()).collect::<Vec<_>>(),
+        "albedo": albedos, "g": gs, "mu0": mu0s, "paths": paths,
+        "seed": args.seed, "batches": args.batches,
+    }))?;
+    let out = ctx;
     let settings = PathSettings {
         paths,
         seed: args.seed,
@@ -254,6 +257,114 @@ pub fn run(args: &Args) -> Result<Vec<SlabRow>> {
         &Axis::lin("fraction of incident power"),
         &series,
     )?;
-    out.finish()?;
     Ok(rows)
+}
+
+/// The path tracer's slab check in the registry.
+#[derive(Debug)]
+pub struct PtSlab;
+
+impl Experiment for PtSlab {
+    const NAME: &'static str = "pt_slab";
+    const TITLE: &'static str = "Path tracer: slabs vs adding–doubling and H";
+    const BACKEND: BackendSupport = BackendSupport::CpuOnly("the path tracer runs on the CPU");
+    type Args = Args;
+    type Summary = Vec<SlabRow>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(_args: &Args) -> Vec<Promise> {
+        vec![
+            Promise::csv(
+                "slab.csv",
+                &[
+                    "tau",
+                    "albedo",
+                    "g",
+                    "mu0",
+                    "R",
+                    "R_stderr",
+                    "T_diffuse",
+                    "T_diffuse_stderr",
+                    "T_direct",
+                    "A",
+                    "A_stderr",
+                    "balance",
+                    "balance_stderr",
+                    "R_ref",
+                    "T_diffuse_ref",
+                    "z_r",
+                    "z_t",
+                    "R_hfunction",
+                    "paths",
+                    "seconds",
+                ],
+            ),
+            Promise::file("slab.png"),
+        ]
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let t = s.csv("slab.csv")?;
+        t.require(&[
+            "tau",
+            "albedo",
+            "g",
+            "mu0",
+            "R",
+            "R_stderr",
+            "R_ref",
+            "z_r",
+            "T_diffuse",
+            "T_diffuse_stderr",
+            "T_diffuse_ref",
+            "z_t",
+        ])?;
+        let mut out = String::from(
+            "Diffuse reflectance R and transmittance T of slabs lit at cosine μ₀, against the adding–doubling solver \
+             (z = (MC − reference)/standard error):\n\n",
+        );
+        let rows = t.rows().map(|r| {
+            vec![
+                r.get("tau").to_string(),
+                r.get("albedo").to_string(),
+                r.get("g").to_string(),
+                r.get("mu0").to_string(),
+                format!("{} ± {}", r.fixed("R", 4), r.fixed("R_stderr", 4)),
+                r.fixed("R_ref", 4),
+                r.fixed("z_r", 2),
+                format!(
+                    "{} ± {}",
+                    r.fixed("T_diffuse", 4),
+                    r.fixed("T_diffuse_stderr", 4)
+                ),
+                r.fixed("T_diffuse_ref", 4),
+                r.fixed("z_t", 2),
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "τ",
+                "albedo",
+                "g",
+                "μ₀",
+                "R (MC)",
+                "R (reference)",
+                "z(R)",
+                "T (MC)",
+                "T (reference)",
+                "z(T)",
+            ],
+            rows,
+        ));
+        out.push('\n');
+        out.push_str(&s.png("slab.png"));
+        Ok(out)
+    }
 }

@@ -21,7 +21,7 @@
 //! `--explain` prints the plan (and why each pass runs or not) before rendering.
 //! `--quick` caps the image at 24×24 pixels and the path tracer at 16 samples per pixel.
 
-use crate::common::{BackendArgs, CommonArgs, Output};
+use crate::common::{BackendArgs, CommonArgs, Output, PrecisionArg, value_names};
 use crate::methods::Renderer;
 use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
@@ -33,6 +33,15 @@ use solvers::method::{Params, Tolerance};
 use solvers::pipeline::{self, PipelineConfig, Shadows};
 use solvers::scene::{Scene, SceneFile};
 use std::path::{Path, PathBuf};
+
+/// A `--shadows` value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ShadowsArg {
+    /// Exact shadow rays.
+    Exact,
+    /// The paper's deep shadow map.
+    Dsm,
+}
 
 /// Flags of `render`.
 #[derive(Debug, Clone, clap::Parser)]
@@ -63,8 +72,8 @@ pub struct Args {
     #[arg(long, default_value_t = 4)]
     pub downsample: usize,
     /// CPU precision of the diffusion solve (`f32` or `f64`; the GPU is f32).
-    #[arg(long, default_value = "f64")]
-    pub precision: String,
+    #[arg(long, value_enum, default_value = "f64")]
+    pub precision: PrecisionArg,
     /// Raymarch sub-step as a fraction of a voxel.
     #[arg(long, default_value_t = 0.5)]
     pub step: f64,
@@ -72,8 +81,8 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub pixel_samples: usize,
     /// `exact` shadow rays or the paper's `dsm` (deep shadow map) in single scattering.
-    #[arg(long, default_value = "exact")]
-    pub shadows: String,
+    #[arg(long, value_enum, default_value = "exact")]
+    pub shadows: ShadowsArg,
     /// SOR factor of CDA/FLD (the method parameter `omega`; default 1.8).
     #[arg(long)]
     pub omega: Option<f64>,
@@ -131,10 +140,9 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
     let Some(camera) = channels[0].camera else {
         bail!("{}: the scene has no [camera]", args.scene.display());
     };
-    let shadows = match args.shadows.as_str() {
-        "exact" => Shadows::Exact,
-        "dsm" => Shadows::DeepShadowMap,
-        other => bail!("--shadows must be exact or dsm, got `{other}`"),
+    let shadows = match args.shadows {
+        ShadowsArg::Exact => Shadows::Exact,
+        ShadowsArg::Dsm => Shadows::DeepShadowMap,
     };
     let mut params = Params::parse(args.param.iter().map(String::as_str)).context("--param")?;
     if let Some(w) = args.omega {
@@ -142,10 +150,7 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
     }
     let renderer = Renderer::parse_with(&args.method, &params)
         .with_context(|| format!("--method `{}`", args.method))?;
-    let precision: Precision = args
-        .precision
-        .parse()
-        .with_context(|| format!("--precision `{}`", args.precision))?;
+    let precision: Precision = args.precision.precision();
     let mut config = PipelineConfig {
         downsample: args.downsample,
         step: args.step,
@@ -174,8 +179,8 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         serde_json::json!({
             "scene": args.scene.display().to_string(), "method": args.method,
             "backend": args.backend.backend, "downsample": args.downsample, "spp": spp,
-            "precision": args.precision, "step": args.step, "pixel_samples": args.pixel_samples,
-            "shadows": args.shadows, "omega": args.omega, "quick": quick,
+            "precision": args.precision.name(), "step": args.step, "pixel_samples": args.pixel_samples,
+            "shadows": value_names(&[args.shadows]), "omega": args.omega, "quick": quick,
         }),
     )?;
     let [w, h] = camera.resolution;

@@ -21,8 +21,10 @@
 //! * `slab_half_space.csv`: `albedo, g, mu0, streams, reflectance, plane_albedo`
 //!   (`plane_albedo` empty unless g = 0)
 
-use crate::common::{CommonArgs, Output, parse_list};
+use crate::common::{CommonArgs, Ctx, list_item};
+use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use reference::point_source::{cda, grosjean};
 use reference::transport::hfunction::{HFunction, h_function, plane_albedo};
@@ -39,20 +41,20 @@ pub struct Args {
     #[command(flatten)]
     pub common: CommonArgs,
     /// Albedos of the point-source curves.
-    #[arg(long, default_value = "0.3,0.7,0.9,0.99")]
-    pub albedo: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0.3,0.7,0.9,0.99")]
+    pub albedo: Vec<f64>,
     /// Largest radius (mean free paths) of the point-source curves.
     #[arg(long, default_value_t = 50.0)]
     pub r_max: f64,
     /// Albedos of the H-function curves (c ≤ 1).
-    #[arg(long, default_value = "0.1,0.5,0.9,0.99,0.999999,1")]
-    pub h_albedo: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0.1,0.5,0.9,0.99,0.999999,1")]
+    pub h_albedo: Vec<f64>,
     /// Albedos of the slab curves (c ≤ 1).
-    #[arg(long, default_value = "0.5,0.9,0.99,1")]
-    pub slab_albedo: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0.5,0.9,0.99,1")]
+    pub slab_albedo: Vec<f64>,
     /// Henyey–Greenstein asymmetries of the slab curves.
-    #[arg(long, default_value = "0,0.5,0.9")]
-    pub g: String,
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0,0.5,0.9")]
+    pub g: Vec<f64>,
     /// Incidence cosine of the slab curves.
     #[arg(long, default_value_t = 1.0)]
     pub mu0: f64,
@@ -128,19 +130,23 @@ fn log_grid(lo: f64, hi: f64, n: usize) -> Vec<f64> {
 
 /// Runs the experiment; returns the point-source summaries.
 pub fn run(args: &Args) -> Result<Vec<PointSummary>> {
+    crate::experiment::run::<TransportReferences>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<PointSummary>> {
     let quick = args.common.quick;
-    let albedos: Vec<f64> = parse_list("albedo", &args.albedo)?;
+    let albedos: Vec<f64> = args.albedo.clone();
     if let Some(a) = albedos.iter().find(|a| !(0.0..1.0).contains(*a)) {
         bail!("--albedo: {a} is outside [0, 1) (the point source needs absorption)");
     }
-    let h_albedos: Vec<f64> = parse_list("h-albedo", &args.h_albedo)?;
-    let slab_albedos: Vec<f64> = parse_list("slab-albedo", &args.slab_albedo)?;
+    let h_albedos: Vec<f64> = args.h_albedo.clone();
+    let slab_albedos: Vec<f64> = args.slab_albedo.clone();
     for (flag, list) in [("h-albedo", &h_albedos), ("slab-albedo", &slab_albedos)] {
         if let Some(a) = list.iter().find(|a| !(0.0..=1.0).contains(*a)) {
             bail!("--{flag}: {a} is outside [0, 1]");
         }
     }
-    let gs: Vec<f64> = parse_list("g", &args.g)?;
+    let gs: Vec<f64> = args.g.clone();
     if let Some(g) = gs.iter().find(|g| g.is_nan() || g.abs() >= 1.0) {
         bail!("--g: {g} is outside (−1, 1)");
     }
@@ -154,7 +160,8 @@ pub fn run(args: &Args) -> Result<Vec<PointSummary>> {
         "albedo": albedos, "r_max": args.r_max, "h_albedo": h_albedos,
         "slab_albedo": slab_albedos, "g": gs, "mu0": args.mu0, "quick": quick,
     });
-    let mut out = Output::new("transport_references", &args.common, params)?;
+    ctx.start(params)?;
+    let out = ctx;
 
     // Point source.
     let t0 = Instant::now();
@@ -270,7 +277,7 @@ pub fn run(args: &Args) -> Result<Vec<PointSummary>> {
     out.csv("slab_half_space.csv", &half_rows)?;
 
     plots(
-        &out,
+        out,
         &albedos,
         &point_rows,
         &h_albedos,
@@ -278,12 +285,11 @@ pub fn run(args: &Args) -> Result<Vec<PointSummary>> {
         &gs,
         &slab_rows,
     )?;
-    out.finish()?;
     Ok(summaries)
 }
 
 fn plots(
-    out: &Output,
+    out: &Ctx,
     albedos: &[f64],
     point: &[PointRow],
     h_albedos: &[f64],
@@ -420,4 +426,141 @@ fn plots(
         )?;
     }
     Ok(())
+}
+
+/// The exact transport references in the registry.
+#[derive(Debug)]
+pub struct TransportReferences;
+
+impl Experiment for TransportReferences {
+    const NAME: &'static str = "transport_references";
+    const TITLE: &'static str = "Exact transport references";
+    const BACKEND: BackendSupport = BackendSupport::CpuOnly("exact solutions, no grid solver");
+    type Args = Args;
+    type Summary = Vec<PointSummary>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(_args: &Args) -> Vec<Promise> {
+        let mut p = vec![
+            Promise::csv(
+                "point_source.csv",
+                &[
+                    "albedo",
+                    "r",
+                    "radial_density",
+                    "radial_density_collided",
+                    "grosjean_radial_density",
+                    "cda_radial_density",
+                    "rel_err_grosjean",
+                    "rel_err_cda",
+                ],
+            ),
+            Promise::csv(
+                "point_source_summary.csv",
+                &[
+                    "albedo",
+                    "nu0",
+                    "discrete_amplitude",
+                    "energy_balance",
+                    "grosjean_max_abs_rel_err_near",
+                    "grosjean_max_abs_rel_err_far",
+                    "cda_max_abs_rel_err_far",
+                ],
+            ),
+            Promise::csv(
+                "h_function.csv",
+                &["albedo", "mu", "h_integral", "h_nystrom", "plane_albedo"],
+            ),
+            Promise::csv(
+                "slab.csv",
+                &[
+                    "albedo",
+                    "g",
+                    "mu0",
+                    "tau",
+                    "streams",
+                    "reflectance",
+                    "transmittance_diffuse",
+                    "transmittance_direct",
+                ],
+            ),
+            Promise::csv(
+                "slab_half_space.csv",
+                &[
+                    "albedo",
+                    "g",
+                    "mu0",
+                    "streams",
+                    "reflectance",
+                    "plane_albedo",
+                ],
+            ),
+        ];
+        for f in [
+            "point_radial_density.png",
+            "point_relative_error.png",
+            "h_function.png",
+            "plane_albedo.png",
+            "slab_reflectance.png",
+            "slab_transmittance.png",
+        ] {
+            p.push(Promise::file(f));
+        }
+        p
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let t = s.csv("point_source_summary.csv")?;
+        t.require(&[
+            "albedo",
+            "nu0",
+            "energy_balance",
+            "grosjean_max_abs_rel_err_near",
+            "grosjean_max_abs_rel_err_far",
+            "cda_max_abs_rel_err_far",
+        ])?;
+        let mut out = String::from(
+            "Case–Zweifel point source, Chandrasekhar H-function and adding–doubling slabs, each checked against an \
+             independent second computation (see `reference::transport`). Grosjean's and CDA's largest relative \
+             error against the exact point source, near (r from 0.01 to 1 mean free path) and far (r from 1 to 10):\n\n",
+        );
+        let rows = t.rows().map(|r| {
+            vec![
+                r.get("albedo").to_string(),
+                r.fixed("nu0", 4),
+                format!("{:.1e}", (r.num("energy_balance") - 1.0).abs()),
+                r.fixed("grosjean_max_abs_rel_err_near", 4),
+                r.fixed("grosjean_max_abs_rel_err_far", 4),
+                r.fixed("cda_max_abs_rel_err_far", 4),
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "albedo",
+                "ν₀",
+                "|energy balance − 1|",
+                "Grosjean max rel. error, near",
+                "Grosjean, far",
+                "CDA, far",
+            ],
+            rows,
+        ));
+        out.push('\n');
+        out.push_str(&s.pngs([
+            "point_radial_density.png",
+            "point_relative_error.png",
+            "h_function.png",
+            "plane_albedo.png",
+            "slab_reflectance.png",
+            "slab_transmittance.png",
+        ]));
+        Ok(out)
+    }
 }

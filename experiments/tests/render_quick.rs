@@ -2,12 +2,13 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
 use clap::Parser;
 use experiments::render;
-use std::path::PathBuf;
 
-fn tmp(name: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("scatterbench-render-{name}-{}", std::process::id()))
+fn tmp(name: &str) -> std::path::PathBuf {
+    common::tmp(&format!("render-{name}"))
 }
 
 fn scene(name: &str) -> String {
@@ -96,7 +97,8 @@ fn render_rejects_bad_flags() {
         ("--shadows", "soft"),
         ("--backend", "tpu"),
     ] {
-        let args = render::Args::parse_from([
+        // Rejected by the flag parser (typed values such as `--backend`) or by the run.
+        let Ok(args) = render::Args::try_parse_from([
             "render",
             "--quick",
             "--scene",
@@ -105,7 +107,9 @@ fn render_rejects_bad_flags() {
             value,
             "--out",
             dir.to_str().unwrap(),
-        ]);
+        ]) else {
+            continue;
+        };
         assert!(render::run(&args).is_err(), "{flag} {value}");
     }
     let args = render::Args::parse_from(["render", "--scene", "/nonexistent.toml"]);

@@ -35,6 +35,7 @@
 //! solve that stops there reports [`Stop::Cap`], not an error.
 
 use crate::gpu::Timer;
+use crate::gpu::kernel::KernelSpec;
 use crate::scene::{Light, Phase};
 use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
 use serde::Serialize;
@@ -283,6 +284,12 @@ pub trait Method: fmt::Debug + Send + Sync {
     /// Bytes one step reads and writes on `grid` in `precision` (the benches' bandwidth
     /// figure).
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize;
+
+    /// Its GPU kernels' declarations, checked against their WGSL by the contract test
+    /// (`solvers/tests/kernel_contract.rs`); none by default.
+    fn kernels(&self) -> &'static [&'static KernelSpec] {
+        &[]
+    }
 }
 
 /// Named numeric parameters of a method (`omega=1.5`); a family consumes the ones it knows

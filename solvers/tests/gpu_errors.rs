@@ -78,7 +78,10 @@ fn a_kernel_bound_against_its_spec_gives_a_typed_error_naming_the_binding() {
     else {
         return;
     };
-    let spec = specs().iter().find(|s| s.label == "copy.wgsl").unwrap();
+    let spec = specs()
+        .into_iter()
+        .find(|s| s.label == "copy.wgsl")
+        .unwrap();
     let problem = |r: Result<_, GpuError>| match r {
         Err(GpuError::Contract { problem, name, .. }) => (problem, name),
         other => panic!("expected a contract error, got {other:?}"),

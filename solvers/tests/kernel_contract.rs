@@ -172,10 +172,32 @@ fn struct_mismatches(
 fn every_kernel_spec_matches_its_wgsl() {
     let specs = specs();
     let labels: Vec<&str> = specs.iter().map(|s| s.label).collect();
-    for expected in ["fld.wgsl", "lbm.wgsl", "copy.wgsl"] {
+    // Every shader in the crate is declared by some spec (a method's through
+    // `Method::kernels`), so a new kernel cannot skip the contract.
+    fn wgsl_files(dir: &std::path::Path, out: &mut Vec<String>) {
+        for e in std::fs::read_dir(dir).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                wgsl_files(&p, out);
+            } else if p.extension().is_some_and(|x| x == "wgsl") {
+                out.push(p.file_name().unwrap().to_string_lossy().into_owned());
+            }
+        }
+    }
+    let mut files = Vec::new();
+    wgsl_files(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src"),
+        &mut files,
+    );
+    assert!(files.len() >= 3, "{files:?}");
+    for expected in files
+        .iter()
+        .map(String::as_str)
+        .chain(["fld.wgsl", "lbm.wgsl", "copy.wgsl"])
+    {
         assert!(
             labels.contains(&expected),
-            "{expected} missing from {labels:?}"
+            "{expected} has no KernelSpec in gpu::kernel::specs() ({labels:?}); declare it in the method's `kernels()`"
         );
     }
     let mut failures = Vec::new();
@@ -196,7 +218,7 @@ fn every_kernel_spec_matches_its_wgsl() {
 /// reordered member and a swapped binding (on a copy of the FLD shader, edited here).
 #[test]
 fn the_checker_catches_a_reordered_member_and_a_swapped_binding() {
-    let fld = specs().iter().find(|s| s.label == "fld.wgsl").unwrap();
+    let fld = specs().into_iter().find(|s| s.label == "fld.wgsl").unwrap();
     let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
 
     let members = fld.source.replacen(
@@ -207,7 +229,7 @@ fn the_checker_catches_a_reordered_member_and_a_swapped_binding() {
     assert_ne!(members, fld.source, "the edit must apply");
     let spec = KernelSpec {
         source: leak(members),
-        ..**fld
+        ..*fld
     };
     let found = mismatches(&spec);
     assert!(
@@ -230,7 +252,7 @@ fn the_checker_catches_a_reordered_member_and_a_swapped_binding() {
     assert_ne!(swapped, fld.source, "the edit must apply");
     let spec = KernelSpec {
         source: leak(swapped),
-        ..**fld
+        ..*fld
     };
     let found = mismatches(&spec);
     assert!(

@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::accuracy_cost`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::accuracy_cost::Args::parse();
-    experiments::accuracy_cost::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::accuracy_cost`].
+experiments::experiment_main!(experiments::accuracy_cost::AccuracyCost);

@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::convergence`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::convergence::Args::parse();
-    experiments::convergence::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::convergence`].
+experiments::experiment_main!(experiments::convergence::Convergence);

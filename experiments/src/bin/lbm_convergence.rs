@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::lbm_convergence`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::lbm_convergence::Args::parse();
-    experiments::lbm_convergence::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::lbm_convergence`].
+experiments::experiment_main!(experiments::lbm_convergence::LbmConvergence);

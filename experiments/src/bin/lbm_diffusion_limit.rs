@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::lbm_diffusion_limit`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::lbm_diffusion_limit::Args::parse();
-    experiments::lbm_diffusion_limit::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::lbm_diffusion_limit`].
+experiments::experiment_main!(experiments::lbm_diffusion_limit::LbmDiffusionLimit);

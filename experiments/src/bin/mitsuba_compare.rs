@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::mitsuba_compare`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::mitsuba_compare::Args::parse();
-    experiments::mitsuba_compare::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::mitsuba_compare`].
+experiments::experiment_main!(experiments::mitsuba_compare::MitsubaCompare);

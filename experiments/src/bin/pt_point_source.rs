@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::pt_point_source`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::pt_point_source::Args::parse();
-    experiments::pt_point_source::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::pt_point_source`].
+experiments::experiment_main!(experiments::pt_point_source::PtPointSource);

@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::pt_render`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::pt_render::Args::parse();
-    experiments::pt_render::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::pt_render`].
+experiments::experiment_main!(experiments::pt_render::PtRender);

@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::pt_slab`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::pt_slab::Args::parse();
-    experiments::pt_slab::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::pt_slab`].
+experiments::experiment_main!(experiments::pt_slab::PtSlab);

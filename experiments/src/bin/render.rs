@@ -1,8 +1,4 @@
-//! Thin wrapper: see [`experiments::render`].
-use clap::Parser;
-
+//! Binary of [`experiments::render`] (a tool, not one of the figures: it is not in the registry).
 fn main() -> anyhow::Result<()> {
-    let args = experiments::render::Args::parse();
-    experiments::render::run(&args)?;
-    Ok(())
+    experiments::experiment::tool_main(experiments::render::run)
 }

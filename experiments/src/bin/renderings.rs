@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::renderings`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::renderings::Args::parse();
-    experiments::renderings::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::renderings`].
+experiments::experiment_main!(experiments::renderings::Renderings);

@@ -89,6 +89,10 @@ impl Method for FldMethod {
         .map(|s| s.erase())
     }
 
+    fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {
+        &[&super::gpu::SPEC]
+    }
+
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {
         // Words per voxel and iteration as `CpuFld::bytes_per_iteration` counts them: 7 for
         // a constant limiter (CDA), 9 for FLD (the D update reads and writes more).

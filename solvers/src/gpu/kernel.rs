@@ -57,14 +57,21 @@ pub struct KernelSpec {
     pub uniforms: &'static [(&'static str, StructLayout)],
 }
 
-/// Every kernel of the crate, for the host↔WGSL contract test (`tests/kernel_contract.rs`).
-/// A new GPU kernel adds its `SPEC` here.
-pub fn specs() -> &'static [&'static KernelSpec] {
-    &[
-        &crate::fld::gpu::SPEC,
-        &crate::lbm::gpu::SPEC,
-        &super::bandwidth::SPEC,
-    ]
+/// Every kernel of the crate, for the host↔WGSL contract test (`tests/kernel_contract.rs`):
+/// the kernels of every registered method ([`crate::Method::kernels`], so a new method's
+/// kernel is checked without an edit here) and the crate's own (the copy probe), each once.
+pub fn specs() -> Vec<&'static KernelSpec> {
+    let mut all: Vec<&'static KernelSpec> = vec![&super::bandwidth::SPEC];
+    for family in crate::method::METHODS {
+        if let Ok(m) = (family.build)(None, &crate::method::Params::none()) {
+            for k in m.kernels() {
+                if !all.iter().any(|s| s.label == k.label) {
+                    all.push(k);
+                }
+            }
+        }
+    }
+    all
 }
 
 /// The layout of a `#[repr(C)]` struct: `struct_layout!(GpuParams; nx, ny, …)`. Every

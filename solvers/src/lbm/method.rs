@@ -78,6 +78,10 @@ impl Method for LbmMethod {
         .map(|s| s.erase())
     }
 
+    fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {
+        &[&super::gpu::SPEC]
+    }
+
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {
         // 19 values read and 19 written per site (as `CpuLbm::bytes_per_step`).
         let word = match precision {

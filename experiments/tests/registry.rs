@@ -1,0 +1,304 @@
+//! The generic quick test: every registered experiment, run as `figures --quick` runs it,
+//! writes every file and CSV column it promises, and the README rendered from those runs
+//! embeds every plot and has no line over 300 characters. Claims that can be checked on the
+//! same runs are checked here too, so that no experiment runs twice.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use experiments::experiment::{EXPERIMENTS, unavailable};
+use experiments::report::{RunOutcome, Table, check_readme, readme};
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+/// Every quick run, made once per test process.
+struct Quick {
+    root: PathBuf,
+    readme: String,
+    problems: Vec<String>,
+}
+
+fn quick() -> &'static Quick {
+    static QUICK: OnceLock<Quick> = OnceLock::new();
+    QUICK.get_or_init(|| {
+        let root = common::tmp("registry");
+        let _ = std::fs::remove_dir_all(&root);
+        let mut problems = Vec::new();
+        let mut outcomes = Vec::new();
+        for e in EXPERIMENTS {
+            for run in e.figure_runs(true) {
+                let dir = root.join(&run.dir);
+                let argv = e.figure_argv(&run, &dir, true, true, "cpu");
+                let mut outcome = RunOutcome::new(e, run.clone());
+                match e.run(&argv) {
+                    Ok(()) => problems.extend(common::broken_promises(e, &argv, &dir)),
+                    // Mitsuba is optional here (`both_example_scenes_agree_with_mitsuba` requires it when SCATTERBENCH_REQUIRE_MITSUBA=1, as in CI).
+                    Err(err) if unavailable(&err).is_some() => {
+                        eprintln!("skipped {}: {err:#}", run.dir);
+                        outcome.skipped = Some(format!("{err:#}"));
+                    }
+                    Err(err) => problems.push(format!("{}: {err:#}", run.dir)),
+                }
+                outcomes.push(outcome);
+            }
+        }
+        let readme = readme(&root, &outcomes, true).unwrap();
+        problems.extend(check_readme(&readme, &root, 300));
+        Quick {
+            root,
+            readme,
+            problems,
+        }
+    })
+}
+
+#[test]
+fn every_registered_experiment_keeps_its_promises_and_the_readme_shows_every_plot() {
+    let q = quick();
+    assert!(q.problems.is_empty(), "{:#?}", q.problems);
+    for e in EXPERIMENTS {
+        assert!(q.readme.contains(e.title), "README lacks {}", e.title);
+    }
+}
+
+/// The atlas covers every dataset and method, the reference noise is positive and below
+/// 15 %, and the path tracer's own error falls like 1/√spp: between 16 and 32 spp the
+/// debiased error drops by √2 (accepted: 1.15 … 1.75).
+#[test]
+fn accuracy_cost_quick_atlas() {
+    let dir = quick().root.join("accuracy_cost");
+    let points = Table::read(&dir.join("points.csv")).unwrap();
+    for s in ["nebula", "emissive_cloud", "shell_core", "plume"] {
+        assert!(dir.join(format!("pareto_{s}.png")).exists());
+        let mine: Vec<_> = points.rows().filter(|p| p.get("scene") == s).collect();
+        for m in experiments::accuracy_cost::methods() {
+            assert!(
+                mine.iter().any(|p| p.get("method") == m.name),
+                "{s}: no point of {}",
+                m.name
+            );
+        }
+        assert!(
+            mine.iter()
+                .all(|p| p.num("error").is_finite() && p.num("seconds") > 0.0)
+        );
+        // The reference's own noise: positive, and small enough at 256 spp to resolve the
+        // grid methods' errors (measured 0.048–0.077 over the four quick scenes).
+        let noise = mine[0].num("error_stderr");
+        assert!(noise > 0.0 && noise < 0.15, "{s}: reference noise {noise}");
+        let pt = |spp: &str| {
+            mine.iter()
+                .find(|p| p.get("method") == "pt" && p.get("setting") == format!("spp={spp}"))
+                .unwrap()
+                .num("error_debiased")
+        };
+        let ratio = pt("16") / pt("32");
+        assert!((1.15..1.75).contains(&ratio), "{s}: pt error ratio {ratio}");
+    }
+}
+
+/// On the nebula FLD-LP's multiple-scattering error is below CDA's at albedo 0.9 at both
+/// resolutions (FLD Section 6.2's claim), a quarter-resolution FLD solve costs less than
+/// 1/20 of the full-resolution one (FLD Fig 6), and single scattering does not depend on
+/// the diffusion method.
+#[test]
+fn renderings_quick_sweep() {
+    let dir = quick().root.join("renderings");
+    for a in ["0.3", "0.9"] {
+        assert!(dir.join(format!("nebula_a{a}.png")).exists());
+        assert!(dir.join(format!("nebula_a{a}_error.png")).exists());
+    }
+    let claim = Table::read(&dir.join("claim.csv")).unwrap();
+    let claims: Vec<_> = claim
+        .rows()
+        .filter(|c| c.get("scene") == "nebula" && c.num("albedo") == 0.9)
+        .collect();
+    assert_eq!(claims.len(), 2);
+    for c in claims {
+        assert!(c.flag("fld_lower"), "{}", c.get("downsample"));
+    }
+    let quarter = Table::read(&dir.join("quarter.csv")).unwrap();
+    let q = quarter
+        .rows()
+        .find(|q| q.get("scene") == "nebula" && q.get("method").starts_with("fld:lp"))
+        .unwrap();
+    assert!(q.num("cost_ratio") < 1.0 / 20.0, "{}", q.get("cost_ratio"));
+    let errors = Table::read(&dir.join("errors.csv")).unwrap();
+    let single: Vec<f64> = errors
+        .rows()
+        .filter(|e| {
+            e.get("scene") == "nebula" && e.num("albedo") == 0.9 && e.get("downsample") == "4"
+        })
+        .map(|e| e.num("error_single"))
+        .collect();
+    assert_eq!(single.len(), 2);
+    assert_eq!(single[0], single[1]);
+}
+
+/// LB Fig 5 quick: every run reaches every tolerance, the steady state balances injection
+/// and outflow (the paper's model does not absorb) within 10⁻³, and the paper-setting cloud
+/// converges to 10⁻⁵ in 1.5N–3N steps (LB Section 5: "about 2N"; measured 2.1–2.25N).
+#[test]
+fn lbm_convergence_quick_converges_in_about_2n_steps() {
+    let steps = Table::read(&quick().root.join("lbm_convergence/steps.csv")).unwrap();
+    assert!(!steps.is_empty());
+    for r in steps.rows() {
+        let what = format!(
+            "{} N={} tol={}",
+            r.get("series"),
+            r.get("n"),
+            r.get("tolerance")
+        );
+        assert!(r.flag("converged"), "{what}");
+        assert!(
+            r.num("balance").abs() < 1e-3,
+            "{what}: balance {}",
+            r.get("balance")
+        );
+        if r.get("series") == "paper" && r.num("tolerance") == 1e-5 {
+            let k = r.num("steps_over_n");
+            assert!((1.5..=3.0).contains(&k), "{what}: {k} N steps");
+        }
+    }
+}
+
+/// LB Eq 19 quick (49³, σa = 0.1): where the diffusion limit applies (Kn ≤ 0.5: σt = 0.5 and
+/// 1 at r_min = 4) the fitted D is within 5 % of the formula (measured −2.7 % and +0.01 %),
+/// and at σt = 0.1 (Kn = 2.5) it is not (measured 0.48×): the figure's point.
+#[test]
+fn lbm_diffusion_limit_quick_matches_eq_19_where_it_applies() {
+    let cases = Table::read(&quick().root.join("lbm_diffusion_limit/cases.csv")).unwrap();
+    assert!(cases.rows().any(|r| r.flag("applies")));
+    for r in cases.rows() {
+        let what = format!("σt={} σa={}", r.get("sigma_t"), r.get("sigma_a"));
+        let e = r.num("rel_error");
+        assert!(r.flag("steady"), "{what}");
+        if r.flag("applies") {
+            assert!(e < 0.05, "{what}: relative error {e}");
+        }
+        if r.num("sigma_t") == 0.1 {
+            assert!(e > 0.2, "{what}: relative error {e}");
+        }
+    }
+}
+
+/// The exact point source conserves energy to 10⁻¹², and Grosjean stays within 3 % of it
+/// far from the source for albedo ≥ 0.7.
+#[test]
+fn transport_references_quick_balance_and_grosjean_band() {
+    let summary = Table::read(
+        &quick()
+            .root
+            .join("transport_references/point_source_summary.csv"),
+    )
+    .unwrap();
+    assert_eq!(summary.rows().count(), 4);
+    for s in summary.rows() {
+        let a = s.num("albedo");
+        assert!((s.num("energy_balance") - 1.0).abs() < 1e-12, "α={a}");
+        if a >= 0.7 {
+            let e = s.num("grosjean_max_abs_rel_err_far");
+            assert!(e < 0.03, "α={a}: {e}");
+        }
+    }
+}
+
+/// FLD Fig 5 quick (31³): FLD-LP's error against Grosjean near the source is below CDA's at
+/// albedo 0.5 and 0.9 (zero boundary), and every solve converges.
+#[test]
+fn point_source_quick_fld_beats_cda_near_source() {
+    let runs = Table::read(&quick().root.join("point_source/runs.csv")).unwrap();
+    for a in [0.5, 0.9] {
+        let err = |lim: &str| {
+            runs.rows()
+                .find(|r| {
+                    r.get("limiter") == lim && r.get("boundary") == "zero" && r.num("albedo") == a
+                })
+                .map_or(f64::NAN, |r| r.num("err_grosjean_near"))
+        };
+        let (lp, cda) = (err("lp"), err("cda"));
+        assert!(lp < cda, "α={a}: LP {lp} vs CDA {cda}");
+    }
+    assert!(runs.rows().all(|r| r.flag("converged")));
+}
+
+/// FLD Fig 4 quick: our default θ = 0.5 converges at every SOR factor, and iterations grow
+/// with resolution.
+#[test]
+fn convergence_quick_converges_and_iterations_grow_with_resolution() {
+    let rows = Table::read(&quick().root.join("convergence/iterations.csv")).unwrap();
+    assert!(
+        rows.rows()
+            .filter(|r| r.get("case") == "sor")
+            .all(|r| r.flag("converged"))
+    );
+    let res: Vec<f64> = rows
+        .rows()
+        .filter(|r| r.get("case") == "resolution")
+        .map(|r| r.num("iterations"))
+        .collect();
+    assert!(
+        res.len() >= 2 && res.windows(2).all(|w| w[1] >= w[0]),
+        "iterations vs n: {res:?}"
+    );
+}
+
+/// The committed `results/README.md` embeds every PNG committed under `results/` and has no
+/// line over 300 characters (regenerate it with `just figures-report` after adding a plot).
+#[test]
+fn committed_results_readme_embeds_every_plot_with_short_lines() {
+    let root = experiments::common::workspace_root().join("results");
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let problems = check_readme(&readme, &root, 300);
+    assert!(
+        problems.is_empty(),
+        "{problems:#?}\n(regenerate with `cargo run --release -p experiments --bin figures -- --report-only`)"
+    );
+}
+
+/// Our path tracer against Mitsuba 3 on both example scenes (quick: 32×32, 1024 paths per
+/// pixel): at least 99 % of the pixels pass the per-pixel test, the image means agree within
+/// 4 combined standard errors (a false alarm has probability 6e-5), and the test has the power
+/// to see a 5 % difference. Without Mitsuba (scripts/setup-mitsuba.sh) it prints "skipped"
+/// and passes, unless SCATTERBENCH_REQUIRE_MITSUBA=1, when it fails.
+#[test]
+fn both_example_scenes_agree_with_mitsuba() {
+    let root = quick().root.join("mitsuba_compare");
+    for scene in ["cloud_directional", "emissive_sphere"] {
+        let dir = root.join(scene);
+        if !dir.join("comparison.csv").exists() {
+            assert!(
+                std::env::var("SCATTERBENCH_REQUIRE_MITSUBA").as_deref() != Ok("1"),
+                "SCATTERBENCH_REQUIRE_MITSUBA=1 but the {scene} comparison did not run"
+            );
+            eprintln!("skipped: Mitsuba not installed (run scripts/setup-mitsuba.sh)");
+            return;
+        }
+        let meta = std::fs::read_to_string(dir.join("meta.json")).unwrap();
+        assert!(
+            meta.contains("\"variants\"") && meta.contains("scalar_rgb"),
+            "{meta}"
+        );
+        let t = Table::read(&dir.join("comparison.csv")).unwrap();
+        let r = t.rows().next().unwrap();
+        assert_eq!(r.num("pixels"), (32 * 32) as f64, "{scene}");
+        assert!(
+            r.num("fraction_passing") >= 0.99,
+            "{scene}: {}",
+            r.get("fraction_passing")
+        );
+        assert!(
+            r.num("mean_z").abs() < 4.0,
+            "{scene}: mean z {}",
+            r.get("mean_z")
+        );
+        let combined = r
+            .num("mean_ours_stderr")
+            .hypot(r.num("mean_mitsuba_stderr"));
+        assert!(
+            0.05 * r.num("mean_mitsuba") > 4.0 * combined,
+            "{scene}: combined se {combined}"
+        );
+    }
+}
