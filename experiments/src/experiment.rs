@@ -258,6 +258,7 @@ pub static EXPERIMENTS: &[ExperimentEntry] = &[
     ExperimentEntry::of::<crate::transport_references::TransportReferences>(),
     ExperimentEntry::of::<crate::pt_point_source::PtPointSource>(),
     ExperimentEntry::of::<crate::pt_slab::PtSlab>(),
+    ExperimentEntry::of::<crate::i3rc_step_cloud::I3rcStepCloud>(),
     ExperimentEntry::of::<crate::pt_render::PtRender>(),
     ExperimentEntry::of::<crate::renderings::Renderings>(),
     ExperimentEntry::of::<crate::accuracy_cost::AccuracyCost>(),

@@ -31,8 +31,10 @@
 //! `columns_<experiment>.png` (R, T and T_direct per column) and `meta.json`. Standard
 //! errors by batch means over 64 batches.
 
-use crate::common::{CommonArgs, Output, progress};
+use crate::common::{CommonArgs, Ctx, progress};
+use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Section, table};
 use anyhow::{Context, Result};
 use reference::pathtracer::{Beam, PathSettings, PeriodicSlab, PeriodicTally};
 use serde::Serialize;
@@ -232,21 +234,21 @@ pub fn simulate(case: &Case, settings: &PathSettings) -> Result<PeriodicTally> {
 
 /// Runs the four experiments; writes the CSVs, plots and `meta.json`.
 pub fn run(args: &Args) -> Result<Summary> {
+    crate::experiment::run::<I3rcStepCloud>(args)
+}
+
+fn run_in(out: &mut Ctx, args: &Args) -> Result<Summary> {
     let paths = args.paths.unwrap_or(if args.common.quick {
         QUICK_PATHS
     } else {
         DEFAULT_PATHS
     });
-    let mut out = Output::new(
-        "i3rc_step_cloud",
-        &args.common,
-        serde_json::json!({
-            "paths_per_experiment": paths, "seed": args.seed, "batches": args.batches,
-            "cases": CASES, "columns": COLUMNS, "period_km": PERIOD_KM,
-            "thickness_km": THICKNESS_KM, "tau": [2.0, 18.0], "g": G,
-            "grid": [COLUMNS, 3, 16], "sun": "in the x-z plane, light propagating towards +x",
-        }),
-    )?;
+    out.start(serde_json::json!({
+        "paths_per_experiment": paths, "seed": args.seed, "batches": args.batches,
+        "cases": CASES, "columns": COLUMNS, "period_km": PERIOD_KM,
+        "thickness_km": THICKNESS_KM, "tau": [2.0, 18.0], "g": G,
+        "grid": [COLUMNS, 3, 16], "sun": "in the x-z plane, light propagating towards +x",
+    }))?;
     let pb = progress(CASES.len() as u64, &args.common, "i3rc_step_cloud");
     let (mut columns, mut domain, mut balance, mut seconds) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -298,7 +300,7 @@ pub fn run(args: &Args) -> Result<Summary> {
             a_stderr: d.absorptance.stderr,
         });
         balance.push(tally.balance.mean);
-        plot_case(&out, case, &rows)?;
+        plot_case(out, case, &rows)?;
         columns.extend(rows);
         pb.inc(1);
     }
@@ -310,7 +312,6 @@ pub fn run(args: &Args) -> Result<Summary> {
         serde_json::json!({ "R": max_se[0], "T": max_se[1] }),
     );
     out.record("balance", serde_json::json!(balance));
-    out.finish()?;
     Ok(Summary {
         columns,
         domain,
@@ -322,7 +323,7 @@ pub fn run(args: &Args) -> Result<Summary> {
 }
 
 /// R, T and T_direct against column for one experiment.
-fn plot_case(out: &Output, case: &Case, rows: &[ColumnRow]) -> Result<()> {
+fn plot_case(out: &Ctx, case: &Case, rows: &[ColumnRow]) -> Result<()> {
     let pts = |f: &dyn Fn(&ColumnRow) -> f64| -> Vec<(f64, f64)> {
         rows.iter().map(|r| (r.column as f64, f(r))).collect()
     };
@@ -346,6 +347,110 @@ fn plot_case(out: &Output, case: &Case, rows: &[ColumnRow]) -> Result<()> {
         &Axis::lin("fraction of incident flux").range(0.0, 1.2),
         &series,
     )
+}
+
+/// The registry entry (see [`crate::experiment`]).
+#[derive(Debug, Clone, Copy)]
+pub struct I3rcStepCloud;
+
+const COLUMN_CSV: [&str; 9] = [
+    "experiment",
+    "column",
+    "R",
+    "R_stderr",
+    "T",
+    "T_stderr",
+    "T_direct",
+    "A",
+    "A_stderr",
+];
+const DOMAIN_CSV: [&str; 7] = [
+    "experiment",
+    "R",
+    "R_stderr",
+    "T",
+    "T_stderr",
+    "A",
+    "A_stderr",
+];
+
+impl Experiment for I3rcStepCloud {
+    const NAME: &'static str = "i3rc_step_cloud";
+    const TITLE: &'static str = "I3RC Phase 1 step cloud: path-traced R, T, A per column";
+    const BACKEND: BackendSupport = BackendSupport::CpuOnly("the path tracer runs on the CPU");
+    type Args = Args;
+    type Summary = Summary;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(_args: &Args) -> Vec<Promise> {
+        let mut p = vec![
+            Promise::csv("columns.csv", &COLUMN_CSV),
+            Promise::csv("domain.csv", &DOMAIN_CSV),
+        ];
+        p.extend(
+            CASES
+                .iter()
+                .map(|c| Promise::file(format!("columns_{}.png", c.experiment))),
+        );
+        p
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let domain = s.csv("domain.csv")?;
+        domain.require(&DOMAIN_CSV)?;
+        let columns = s.csv("columns.csv")?;
+        columns.require(&COLUMN_CSV)?;
+        let mut out = String::from(
+            "The I3RC Phase 1 step cloud (Case 1): period 0.5 km of 32 columns, 0.25 km thick, \
+             τ = 2 in columns 1–16 and 18 in 17–32, HG g = 0.85, black ground, sun in the x–z \
+             plane (light travelling towards +x). Fluxes relative to the incident flux on a \
+             horizontal surface, ± one standard error (batch means). Experiments: \
+             1: θ0 = 0°, ω0 = 1; 2: 60°, 1; 3: 0°, 0.99; 4: 60°, 0.99.\n\n",
+        );
+        let se = |r: &crate::report::Row<'_>, v: &str| {
+            format!("{} ± {}", r.fixed(v, 4), r.fixed(&format!("{v}_stderr"), 4))
+        };
+        out.push_str(&table(
+            &["experiment", "R", "T", "A"],
+            domain.rows().map(|r| {
+                vec![
+                    r.get("experiment").to_string(),
+                    se(&r, "R"),
+                    se(&r, "T"),
+                    se(&r, "A"),
+                ]
+            }),
+        ));
+        out.push_str("\nPer column (R / T):\n\n");
+        let ids = columns.distinct("experiment");
+        let mut header = vec!["column".to_string()];
+        header.extend(ids.iter().map(|e| format!("exp {e}: R / T")));
+        let header: Vec<&str> = header.iter().map(String::as_str).collect();
+        let ncol = columns.distinct("column");
+        let rows = ncol.iter().map(|c| {
+            let mut row = vec![c.clone()];
+            for e in &ids {
+                let cell = columns
+                    .rows()
+                    .find(|r| r.get("experiment") == e && r.get("column") == c)
+                    .map(|r| format!("{} / {}", r.fixed("R", 4), r.fixed("T", 4)))
+                    .unwrap_or_default();
+                row.push(cell);
+            }
+            row
+        });
+        out.push_str(&table(&header, rows));
+        out.push('\n');
+        out.push_str(&s.pngs(ids.iter().map(|e| format!("columns_{e}.png"))));
+        Ok(out)
+    }
 }
 
 #[cfg(test)]

@@ -1,8 +1,2 @@
-//! Thin wrapper: see [`experiments::i3rc_step_cloud`].
-use clap::Parser;
-
-fn main() -> anyhow::Result<()> {
-    let args = experiments::i3rc_step_cloud::Args::parse();
-    experiments::i3rc_step_cloud::run(&args)?;
-    Ok(())
-}
+//! Binary of [`experiments::i3rc_step_cloud`].
+experiments::experiment_main!(experiments::i3rc_step_cloud::I3rcStepCloud);
