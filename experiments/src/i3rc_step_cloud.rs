@@ -51,7 +51,8 @@ pub const THICKNESS_KM: f64 = 0.25;
 /// Henyey–Greenstein asymmetry.
 pub const G: f64 = 0.85;
 /// Default paths per experiment: per-column standard errors ≤ 0.002 with margin
-/// (measured largest 0.0014, in T of experiment 1; see the README).
+/// (measured: largest 0.00146 in R, 0.00162 in T, over all 4 × 32 columns, seed 1, 64
+/// batches; the full run took 94 s wall on 2 shared cores, 98 s CPU).
 pub const DEFAULT_PATHS: u64 = 16_000_000;
 /// Paths per experiment with `--quick`.
 pub const QUICK_PATHS: u64 = 64_000;

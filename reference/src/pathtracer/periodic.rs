@@ -5,7 +5,7 @@
 //!
 //! # Problem
 //!
-//! The medium is a [`Medium`](solvers::Medium): σt and albedo per voxel (piecewise constant,
+//! The medium is a [`solvers::Medium`]: σt and albedo per voxel (piecewise constant,
 //! nearest reconstruction), one phase function for all voxels, emission ignored. Its grid
 //! spans `[0, nx·Δl) × [0, ny·Δl)` laterally (one period; the grid origin is ignored) and
 //! `0 ≤ z ≤ nz·Δl` vertically, z up: z = 0 is the ground (bottom face), z = nz·Δl the top.
@@ -27,10 +27,10 @@
 //! point within it (uniform y), for every complete round of nx paths; the remaining
 //! N mod nx paths enter uniformly over the period. The entry distribution over all paths
 //! is therefore exactly uniform (unbiased for any N), and a column's tallies no longer
-//! carry the multinomial noise of how many paths happened to enter it: for a column whose
-//! light mostly leaves near where it entered (the thin, forward-scattering columns) the
-//! variance of T drops by up to 1/(1 − T) against uniform entry (measured: see the
-//! `i3rc_step_cloud` experiment).
+//! carry the noise of how many paths happened to enter it. That helps most where light
+//! leaves near where it entered; in the step cloud light spreads over many 15.6 m columns,
+//! so its per-column standard errors stay close to the unstratified √(nx·T/N) (measured
+//! 0.0045–0.0067 in T of the thin columns at N = 10⁶, overhead sun).
 //!
 //! # Tracking
 //!
@@ -48,6 +48,13 @@
 //! that axis), the tracker uses one cell spanning the whole extent instead of the voxels:
 //! the same medium, so the same result in distribution, with fewer DDA steps (see
 //! [`PeriodicSlab::tracking_cells`]; the exit column then comes from the position).
+//!
+//! **Measured** (`reference/tests/periodic_slab.rs`): on the I3RC step-cloud grid
+//! (32 × 3 × 16 voxels of 15.625 m) made laterally homogeneous, τ ∈ {2, 18}, zenith 0° and
+//! 60°, g = 0.85, ω0 ∈ {1, 0.99}, 10⁶ paths per case: all 16 domain R and T within
+//! |z| ≤ 2.77 of adding–doubling ([`crate::transport::slab`]), all 512 per-column values
+//! within the Šidák band 4.55, R + T + A = 1 to 10⁻¹²; a step cloud with 10 km halves
+//! reaches the 1-D (adding–doubling) R and T at each half's centre within |z| ≤ 1.49.
 //!
 //! Random streams, batches and determinism are those of every estimator here:
 //! path i draws from `Rng::new(seed, i)` only, so results are bit-identical for any number
