@@ -187,9 +187,18 @@ impl<T, E> Solution<T, E> {
 
     /// Replaces the method-specific part.
     pub fn map_trace<F>(self, f: impl FnOnce(E) -> F) -> Solution<T, F> {
+        self.map(|phi| phi, f)
+    }
+
+    /// Maps φ and the method-specific part, keeping everything else.
+    pub fn map<U, F>(
+        self,
+        phi: impl FnOnce(Vec<T>) -> Vec<U>,
+        trace: impl FnOnce(E) -> F,
+    ) -> Solution<U, F> {
         Solution {
             grid: self.grid,
-            phi: self.phi,
+            phi: phi(self.phi),
             steps: self.steps,
             last_change: self.last_change,
             stop: self.stop,
@@ -197,7 +206,7 @@ impl<T, E> Solution<T, E> {
             setup_seconds: self.setup_seconds,
             timer: self.timer,
             balance: self.balance,
-            trace: f(self.trace),
+            trace: trace(self.trace),
         }
     }
 }
@@ -205,18 +214,7 @@ impl<T, E> Solution<T, E> {
 impl<T: Real, E> Solution<T, E> {
     /// φ in f64; `f` widens the method-specific part.
     pub fn widen_with<F>(self, f: impl FnOnce(E) -> F) -> Solution<f64, F> {
-        Solution {
-            grid: self.grid,
-            phi: self.phi.iter().map(|x| x.f()).collect(),
-            steps: self.steps,
-            last_change: self.last_change,
-            stop: self.stop,
-            seconds: self.seconds,
-            setup_seconds: self.setup_seconds,
-            timer: self.timer,
-            balance: self.balance,
-            trace: f(self.trace),
-        }
+        self.map(|phi| phi.iter().map(|x| x.f()).collect(), f)
     }
 }
 
