@@ -21,6 +21,7 @@
 #![deny(missing_docs)]
 
 pub mod backend;
+pub mod budget;
 pub mod error;
 pub mod fld;
 pub mod gpu;

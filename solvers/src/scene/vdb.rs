@@ -68,7 +68,7 @@ pub enum VdbError {
 #[cfg(feature = "vdb")]
 pub fn read_float_grid(path: &Path, grid: &str) -> Result<([usize; 3], Vec<f64>), VdbError> {
     use vdb_rs::{VdbLevel, VdbReader};
-    let file = std::fs::File::open(path).map_err(|source| VdbError::Io {
+    let (file, _) = crate::budget::open_regular(path, u64::MAX).map_err(|source| VdbError::Io {
         path: path.to_path_buf(),
         source,
     })?;
@@ -135,6 +135,11 @@ pub fn read_float_grid(path: &Path, grid: &str) -> Result<([usize; 3], Vec<f64>)
         .and_then(|v| v.checked_mul(dims[2]))
         .filter(|&v| v <= MAX_VOXELS)
         .ok_or_else(|| unsupported(format!("dense box {dims:?} exceeds {MAX_VOXELS} voxels")))?;
+    crate::budget::check(
+        format!("the dense box {dims:?} of grid `{grid}`"),
+        crate::budget::bytes(&dims, crate::budget::MEDIUM_BYTES_PER_VOXEL),
+    )
+    .map_err(|e| unsupported(e.to_string()))?;
     let mut out = vec![0.0; total];
     for (c, v, e) in cells {
         for dz in 0..e {

@@ -36,6 +36,9 @@ pub enum VolError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// The grid does not fit the memory budget.
+    #[error(transparent)]
+    TooLarge(#[from] crate::budget::TooLarge),
     /// Fewer bytes than the 48-byte header.
     #[error("truncated header: {got} bytes, a .vol header has {HEADER_BYTES}")]
     TruncatedHeader {
@@ -226,12 +229,38 @@ impl VolGrid {
         out
     }
 
-    /// Reads a `.vol` file.
+    /// Reads a `.vol` file: only a regular file, whose length the header's dimensions
+    /// account for, and whose grid fits the memory budget (checked before reading the data).
     pub fn read(path: &Path) -> Result<Self, VolError> {
-        let bytes = std::fs::read(path).map_err(|source| VolError::Io {
+        use std::io::Read as _;
+        let io = |source| VolError::Io {
             path: path.to_path_buf(),
             source,
-        })?;
+        };
+        let (mut file, len) = crate::budget::open_regular(path, u64::MAX).map_err(io)?;
+        let mut header = vec![0u8; HEADER_BYTES.min(len as usize)];
+        file.read_exact(&mut header).map_err(io)?;
+        // Validates the header alone (the data-length error tells the expected size).
+        let expected = match Self::from_bytes(&header) {
+            Err(VolError::DataLength { expected, .. }) => expected,
+            Err(e) => return Err(e),
+            Ok(v) => return Ok(v),
+        };
+        let body = len - HEADER_BYTES as u64;
+        if body != expected as u64 {
+            return Err(VolError::DataLength {
+                expected,
+                got: usize::try_from(body).unwrap_or(usize::MAX),
+            });
+        }
+        // The file's bytes, their f32 values and the f64 medium built from them.
+        crate::budget::check(
+            format!("the .vol grid `{}`", path.display()),
+            len.saturating_mul(4),
+        )?;
+        let mut bytes = header;
+        bytes.reserve_exact(expected);
+        file.take(body).read_to_end(&mut bytes).map_err(io)?;
         Self::from_bytes(&bytes)
     }
 

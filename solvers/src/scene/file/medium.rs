@@ -102,6 +102,21 @@ impl Cx<'_> {
                 format!("unknown generator `{name}`; known: {}", generators::names()),
             )
         })?;
+        if let Some(n) = m.params.as_ref().and_then(|p| p.get("n")) {
+            let dims: Vec<usize> = match n {
+                toml::Value::Integer(k) => vec![usize::try_from(*k).unwrap_or(0); 3],
+                toml::Value::Array(a) => a
+                    .iter()
+                    .map(|v| v.as_integer().and_then(|k| usize::try_from(k).ok()).unwrap_or(0))
+                    .collect(),
+                _ => Vec::new(),
+            };
+            if !dims.is_empty() {
+                let bytes = crate::budget::bytes(&dims, crate::budget::MEDIUM_BYTES_PER_VOXEL);
+                crate::budget::check(format!("medium.params.n = {n}"), bytes)
+                    .map_err(|e| loc.err("medium.params.n", e.to_string()))?;
+            }
+        }
         let medium = entry.build_from_document(self.text).map_err(|e| match e {
             GeneratorError::Params(e) => loc.toml_err(&e, "medium.params"),
             GeneratorError::Solver(SolverError::BadParameter {

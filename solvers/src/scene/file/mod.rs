@@ -215,9 +215,16 @@ pub fn load_scene(path: &Path) -> Result<Scene, SceneFileError> {
 impl SceneFile {
     /// Loads a scene file; `.vol` paths in it are relative to its directory.
     pub fn load(path: &Path) -> Result<Self, SceneFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneFileError::Io {
+        let io = |source| SceneFileError::Io {
             path: path.to_path_buf(),
             source,
+        };
+        let bytes = crate::budget::read_regular(path, crate::budget::MAX_TOML_BYTES).map_err(io)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("not UTF-8 text: {e}"),
+            ))
         })?;
         let dir = path.parent().unwrap_or(Path::new("."));
         Self::parse(&text, dir, path)
@@ -260,6 +267,14 @@ impl SceneFile {
             .map(|(i, l)| cx.light(i, l))
             .collect::<Result<Vec<_>, _>>()?;
         let camera = doc.camera.as_ref().map(|c| cx.camera(c)).transpose()?;
+        if let Some(c) = &camera {
+            let [w, h] = c.resolution;
+            crate::budget::check(
+                format!("camera.resolution = [{w}, {h}]"),
+                crate::budget::image_bytes(w, h),
+            )
+            .map_err(|e| loc.err("camera.resolution", e.to_string()))?;
+        }
         let sampler = match &doc.sampler {
             Some(s) => {
                 if s.spp == 0 {
