@@ -9,7 +9,10 @@ use std::time::Instant;
 /// Flags every experiment takes.
 #[derive(Debug, Clone, clap::Args)]
 pub struct CommonArgs {
-    /// Output directory (default `results/<experiment name>` under the workspace root).
+    /// Output directory (default `results/<experiment name>` in the current directory;
+    /// `results-quick/<experiment name>` with `--quick`). A run writes into a fresh hidden
+    /// sibling and renames it into place at the end; a second run into the same directory
+    /// at the same time is refused.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// CI-sized run: small grids, few parameter values.
@@ -159,16 +162,38 @@ pub fn workspace_root() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from("."))
 }
 
+/// Where results go when `--out` is not given: `results/<name>`, or `results-quick/<name>`
+/// for `--quick` runs (so CI-sized runs never overwrite committed full results), relative
+/// to the current directory.
+pub fn default_out(name: &str, quick: bool) -> PathBuf {
+    PathBuf::from(if quick { "results-quick" } else { "results" }).join(name)
+}
+
+/// The test hook that simulates an interrupted run: with `SCATTERBENCH_TEST_EXIT_AT=k`,
+/// the process exits (code [`TEST_EXIT_CODE`], no cleanup, as after a kill) at the `k`-th
+/// step of the output layer, counting from 1: each [`Ctx::path`] call (one per file written,
+/// `meta.json` last), then the two renames that put the finished run in place.
+pub const TEST_EXIT_ENV: &str = "SCATTERBENCH_TEST_EXIT_AT";
+
+/// The exit code of the [`TEST_EXIT_ENV`] hook.
+pub const TEST_EXIT_CODE: i32 = 86;
+
 /// The context an experiment runs in: its output directory, its provenance record
 /// (`meta.json`: parameters, timings, backends), and its progress bars.
 ///
 /// [`crate::experiment::run`] makes one from the shared flags, hands it to
 /// [`Experiment::run`](crate::experiment::Experiment::run), and writes `meta.json` when the
-/// run returns. The directory is created by [`Ctx::start`], once the flags are validated.
+/// run returns. [`Ctx::start`], once the flags are validated, takes the lock of the target
+/// directory and creates a fresh staging directory beside it; [`Ctx::finish`] writes
+/// `meta.json` there and renames it into place, so the previous results stay intact until
+/// the new ones are complete and no file of an earlier run survives.
 #[derive(Debug)]
 pub struct Ctx {
-    /// Where files go.
+    /// Where files go: the staging directory once started (use [`Ctx::path`]).
     pub dir: PathBuf,
+    target: PathBuf,
+    staging: Option<Staging>,
+    steps: std::cell::Cell<u64>,
     name: String,
     quick: bool,
     no_progress: bool,
@@ -181,15 +206,129 @@ pub struct Ctx {
 /// The former name of [`Ctx`].
 pub type Output = Ctx;
 
+/// A started run's lock file and staging directory (both removed on drop unless committed).
+#[derive(Debug)]
+struct Staging {
+    lock: PathBuf,
+    dir: PathBuf,
+    committed: bool,
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+        let _ = std::fs::remove_file(&self.lock);
+    }
+}
+
+/// `parent/.<file name of target>.<suffix>`.
+fn sibling(target: &Path, suffix: &str) -> PathBuf {
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".to_string());
+    target
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join(format!(".{name}.{suffix}"))
+}
+
+/// Whether process `pid` is alive (Linux `/proc`; elsewhere assumed alive).
+fn alive(pid: u32) -> bool {
+    if cfg!(target_os = "linux") {
+        Path::new(&format!("/proc/{pid}")).exists()
+    } else {
+        true
+    }
+}
+
+/// Takes the lock file of `target`: created exclusively with this process's id; a lock left
+/// by a process that no longer exists is taken over.
+fn lock(target: &Path) -> Result<PathBuf> {
+    use std::io::Write as _;
+    let path = sibling(target, "lock");
+    for _ in 0..2 {
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+        {
+            Ok(mut f) => {
+                write!(f, "{}", std::process::id())
+                    .with_context(|| format!("writing lock file {}", path.display()))?;
+                return Ok(path);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                let holder = std::fs::read_to_string(&path)
+                    .ok()
+                    .and_then(|s| s.trim().parse::<u32>().ok());
+                match holder {
+                    Some(pid) if !alive(pid) => {
+                        let _ = std::fs::remove_file(&path);
+                    }
+                    _ => anyhow::bail!(
+                        "another run is writing into {} (lock file {}{}); wait for it to \
+                         finish, or delete the lock file if no such run exists",
+                        target.display(),
+                        path.display(),
+                        holder.map(|p| format!(", process {p}")).unwrap_or_default()
+                    ),
+                }
+            }
+            Err(e) => {
+                return Err(e).with_context(|| format!("creating lock file {}", path.display()));
+            }
+        }
+    }
+    anyhow::bail!(
+        "could not take the lock file {} of {}",
+        path.display(),
+        target.display()
+    )
+}
+
+/// With the lock held: puts back results an interrupted commit moved aside, and removes the
+/// staging directories of interrupted runs.
+fn recover(target: &Path) -> Result<()> {
+    let parent = target.parent().unwrap_or(Path::new("."));
+    let Some(name) = target.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        return Ok(());
+    };
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return Ok(());
+    };
+    for e in entries.flatten() {
+        let file = e.file_name().to_string_lossy().into_owned();
+        let Some(rest) = file.strip_prefix(&format!(".{name}.")) else {
+            continue;
+        };
+        let path = e.path();
+        if rest.starts_with("old-") && !target.exists() {
+            std::fs::rename(&path, target).with_context(|| {
+                format!("restoring {} from {}", target.display(), path.display())
+            })?;
+        } else if rest.starts_with("old-") || rest.starts_with("partial-") {
+            std::fs::remove_dir_all(&path)
+                .with_context(|| format!("removing the leftover {}", path.display()))?;
+        }
+    }
+    Ok(())
+}
+
 impl Ctx {
-    /// The context of experiment `name`: `args.out`, or `results/<name>` (not created yet).
+    /// The context of experiment `name`: `args.out`, or [`default_out`] (not created yet).
     pub fn for_run(name: &str, args: &CommonArgs) -> Self {
-        let dir = args
+        let target = args
             .out
             .clone()
-            .unwrap_or_else(|| workspace_root().join("results").join(name));
+            .unwrap_or_else(|| default_out(name, args.quick));
         Self {
-            dir,
+            dir: target.clone(),
+            target,
+            staging: None,
+            steps: std::cell::Cell::new(0),
             name: name.to_string(),
             quick: args.quick,
             no_progress: args.no_progress,
@@ -207,11 +346,86 @@ impl Ctx {
         Ok(ctx)
     }
 
-    /// Records the run's resolved parameters for `meta.json` and creates the directory.
+    /// Records the run's resolved parameters for `meta.json`, takes the lock of the output
+    /// directory and creates the fresh staging directory the run writes into.
     pub fn start(&mut self, params: impl Serialize) -> Result<()> {
-        std::fs::create_dir_all(&self.dir)
-            .with_context(|| format!("creating output directory {}", self.dir.display()))?;
         self.params = serde_json::to_value(params).context("serialising parameters")?;
+        if self.staging.is_some() {
+            return Ok(());
+        }
+        let target = self.target.clone();
+        if let Some(parent) = target.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent)
+                .with_context(|| format!("creating directory {}", parent.display()))?;
+        }
+        if target.exists() && !target.is_dir() {
+            anyhow::bail!("--out {} exists and is not a directory", target.display());
+        }
+        let lock = lock(&target)?;
+        let dir = sibling(&target, &format!("partial-{}", std::process::id()));
+        let staging = Staging {
+            lock,
+            dir: dir.clone(),
+            committed: false,
+        };
+        recover(&target)?;
+        std::fs::create_dir(&dir)
+            .with_context(|| format!("creating output directory {}", dir.display()))?;
+        self.dir = dir;
+        self.staging = Some(staging);
+        Ok(())
+    }
+
+    /// The output directory the run ends up in (`--out` or the default).
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// One step of the output layer, for the [`TEST_EXIT_ENV`] hook.
+    fn step(&self) {
+        let k = self.steps.get() + 1;
+        self.steps.set(k);
+        let at = std::env::var(TEST_EXIT_ENV)
+            .ok()
+            .and_then(|v| v.trim().parse::<u64>().ok());
+        if at == Some(k) {
+            eprintln!("{TEST_EXIT_ENV}={k}: exiting as if interrupted");
+            std::process::exit(TEST_EXIT_CODE);
+        }
+    }
+
+    /// Moves the finished staging directory into place (the old results aside, then away).
+    fn commit(&mut self) -> Result<()> {
+        let Some(mut staging) = self.staging.take() else {
+            return Ok(());
+        };
+        let target = self.target.clone();
+        let old = sibling(&target, &format!("old-{}", std::process::id()));
+        let had_old = target.exists();
+        self.step();
+        if had_old {
+            std::fs::rename(&target, &old)
+                .with_context(|| format!("moving the previous {} aside", target.display()))?;
+        }
+        self.step();
+        if let Err(e) = std::fs::rename(&staging.dir, &target) {
+            if had_old {
+                let _ = std::fs::rename(&old, &target);
+            }
+            return Err(e).with_context(|| {
+                format!(
+                    "moving {} into place as {}",
+                    staging.dir.display(),
+                    target.display()
+                )
+            });
+        }
+        staging.committed = true;
+        self.dir = target;
+        if had_old {
+            std::fs::remove_dir_all(&old)
+                .with_context(|| format!("removing the previous results {}", old.display()))?;
+        }
         Ok(())
     }
 
@@ -234,8 +448,10 @@ impl Ctx {
         bar(len, self.no_progress, what)
     }
 
-    /// Path of a file in the output directory.
+    /// Path of a file in the output directory (the staging directory while the run is in
+    /// progress).
     pub fn path(&self, file: &str) -> PathBuf {
+        self.step();
         self.dir.join(file)
     }
 
@@ -263,9 +479,9 @@ impl Ctx {
         Ok(())
     }
 
-    /// Writes `meta.json`: experiment, command line, parameters, git revision, machine,
-    /// timings and total wall time.
-    pub fn finish(&self) -> Result<()> {
+    /// Writes `meta.json` (experiment, command line, parameters, git revision, machine,
+    /// timings and total wall time), then renames the staging directory into place.
+    pub fn finish(&mut self) -> Result<()> {
         let mut meta = serde_json::json!({
             "experiment": self.name,
             "command": std::env::args().collect::<Vec<_>>(),
@@ -282,7 +498,7 @@ impl Ctx {
         let path = self.path("meta.json");
         std::fs::write(&path, serde_json::to_string_pretty(&meta)?)
             .with_context(|| format!("writing {}", path.display()))?;
-        Ok(())
+        self.commit()
     }
 }
 

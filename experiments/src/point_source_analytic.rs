@@ -104,7 +104,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<std::path::PathBuf> {
         &Axis::log("R = |∇φ|/(σt φ)"),
         &series(&grosjean_knudsen),
     )?;
-    Ok(out.dir.clone())
+    Ok(out.target().to_path_buf())
 }
 
 /// FLD Fig 3 in the registry.

@@ -97,7 +97,10 @@ pub fn image_bytes(w: usize, h: usize) -> u64 {
 
 /// Opens `path` for reading if it is a regular file (not a device such as `/dev/zero`, a
 /// FIFO or a directory) of at most `max_bytes`; returns it with its length.
-pub fn open_regular(path: &std::path::Path, max_bytes: u64) -> std::io::Result<(std::fs::File, u64)> {
+pub fn open_regular(
+    path: &std::path::Path,
+    max_bytes: u64,
+) -> std::io::Result<(std::fs::File, u64)> {
     let file = std::fs::File::open(path)?;
     let meta = file.metadata()?;
     if !meta.is_file() {
@@ -162,7 +165,9 @@ mod tests {
     fn devices_and_directories_are_not_inputs() {
         assert!(open_regular(std::path::Path::new("/dev/zero"), 1 << 20).is_err());
         assert!(open_regular(std::path::Path::new("."), 1 << 20).is_err());
-        let me = std::path::Path::new(file!()).file_name().map(|_| env!("CARGO_MANIFEST_DIR"));
+        let me = std::path::Path::new(file!())
+            .file_name()
+            .map(|_| env!("CARGO_MANIFEST_DIR"));
         let cargo = std::path::Path::new(me.unwrap_or(".")).join("Cargo.toml");
         assert!(read_regular(&cargo, 1 << 20).is_ok());
         assert!(open_regular(&cargo, 1).is_err());

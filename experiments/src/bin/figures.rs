@@ -4,17 +4,18 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use experiments::common::{BackendArgs, BackendChoice, workspace_root};
+use experiments::common::{BackendArgs, BackendChoice};
 use experiments::experiment::{BackendSupport, EXPERIMENTS, unavailable};
 use experiments::report::{RunOutcome, readme};
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Debug, Parser)]
 #[command(about = "Run every registered experiment and write results/README.md")]
 struct Args {
-    /// Results root (default `results/` in the workspace); each run writes a folder below it.
+    /// Results root (default `results/` in the current directory, `results-quick/` with
+    /// `--quick`); each run writes a folder below it.
     #[arg(long)]
     out: Option<PathBuf>,
     /// CI-sized runs.
@@ -33,10 +34,13 @@ struct Args {
 
 fn main() -> Result<()> {
     let args = Args::parse();
-    let root = args
-        .out
-        .clone()
-        .unwrap_or_else(|| workspace_root().join("results"));
+    let root = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from(if args.quick {
+            "results-quick"
+        } else {
+            "results"
+        })
+    });
     let backend = args.backend.backend.to_string();
     let runs: Vec<_> = EXPERIMENTS
         .iter()
@@ -85,11 +89,27 @@ fn main() -> Result<()> {
     }
     let text = readme(&root, &outcomes, args.quick)?;
     let path = root.join("README.md");
-    std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    std::fs::create_dir_all(&root).with_context(|| format!("creating {}", root.display()))?;
+    write_atomically(&path, &text)?;
     let total: f64 = outcomes
         .iter()
         .filter_map(|o| o.seconds)
         .fold(0.0, |a, b| a + b);
     eprintln!("done in {total:.0} s; see {}", path.display());
     Ok(())
+}
+
+/// Writes `text` to `path` through a temporary sibling renamed into place, so a reader (or
+/// an interruption) sees the old file or the new one, never a part.
+fn write_atomically(path: &Path, text: &str) -> Result<()> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    std::fs::write(&tmp, text).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| {
+        let _ = std::fs::remove_file(&tmp);
+        format!("renaming {} to {}", tmp.display(), path.display())
+    })
 }

@@ -107,7 +107,11 @@ impl Cx<'_> {
                 toml::Value::Integer(k) => vec![usize::try_from(*k).unwrap_or(0); 3],
                 toml::Value::Array(a) => a
                     .iter()
-                    .map(|v| v.as_integer().and_then(|k| usize::try_from(k).ok()).unwrap_or(0))
+                    .map(|v| {
+                        v.as_integer()
+                            .and_then(|k| usize::try_from(k).ok())
+                            .unwrap_or(0)
+                    })
                     .collect(),
                 _ => Vec::new(),
             };
