@@ -130,6 +130,13 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<IterRow>> {
     if let Some(r) = resolutions.iter().chain([&n]).find(|r| **r < 5) {
         bail!("grid resolution {r} is too small (≥ 5)");
     }
+    solvers::budget::check(format!("--n {n}"), solvers::budget::cube_solver_bytes(n))?;
+    for &r in &resolutions {
+        solvers::budget::check(
+            format!("--resolutions {r}"),
+            solvers::budget::cube_solver_bytes(r),
+        )?;
+    }
     let mut jobs = Vec::new();
     for &omega in &omegas {
         jobs.push(Job {

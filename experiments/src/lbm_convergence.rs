@@ -132,6 +132,12 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepsRow>> {
     if let Some(n) = sizes.iter().find(|&&n| n < 4) {
         bail!("--sizes: {n} is too small (at least 4)");
     }
+    for &n in &sizes {
+        solvers::budget::check(
+            format!("--sizes {n}"),
+            solvers::budget::cube_solver_bytes(n),
+        )?;
+    }
     let tols: Vec<f64> = args.tolerance.clone();
     if tols.is_empty() || tols.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
         bail!("--tolerance needs positive values, got {:?}", tols);

@@ -123,6 +123,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<CaseRow>> {
     if n % 2 == 0 || n < 15 {
         bail!("--n must be odd and ≥ 15, got {n}");
     }
+    solvers::budget::check(format!("--n {n}"), solvers::budget::cube_solver_bytes(n))?;
     let sts: Vec<f64> = match &args.sigma_t {
         Some(s) => s.clone(),
         None if args.common.quick => vec![0.1, 0.5, 1.0],

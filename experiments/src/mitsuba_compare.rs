@@ -161,7 +161,12 @@ fn parse_resolution(s: &str) -> Result<[usize; 2]> {
             .filter(|&n| n > 0)
             .ok_or_else(|| anyhow::anyhow!("--resolution: `{v}` is not a positive integer"))
     };
-    Ok([parse(w)?, parse(h)?])
+    let [w, h] = [parse(w)?, parse(h)?];
+    solvers::budget::check(
+        format!("--resolution {w},{h}"),
+        solvers::budget::image_bytes(w, h),
+    )?;
+    Ok([w, h])
 }
 
 /// The stem of the scene file (`scenes/cloud.toml` → `cloud`), naming its output folder.

@@ -190,6 +190,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
     if n % 2 == 0 || n < 7 {
         bail!("--n must be odd and ≥ 7 so a single voxel sits at the centre, got {n}");
     }
+    solvers::budget::check(format!("--n {n}"), solvers::budget::cube_solver_bytes(n))?;
     if !(args.tau_extent.is_finite() && args.tau_extent > 0.0) {
         bail!(
             "--tau-extent must be finite and > 0, got {}",

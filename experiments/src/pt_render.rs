@@ -157,6 +157,14 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<TimingRow>> {
     if res == 0 {
         bail!("--res must be at least 1");
     }
+    solvers::budget::check(
+        format!("--n {n}"),
+        solvers::budget::bytes(&[n, n, n], solvers::budget::MEDIUM_BYTES_PER_VOXEL),
+    )?;
+    solvers::budget::check(
+        format!("--res {res}"),
+        solvers::budget::image_bytes(res, res),
+    )?;
     let interpolation = match args.interpolation {
         InterpolationArg::Nearest => Interpolation::Nearest,
         InterpolationArg::Trilinear => Interpolation::Trilinear,

@@ -73,7 +73,13 @@ pub fn scene_paths(list: &str) -> Result<Vec<PathBuf>> {
 pub fn parse_resolution(s: &str) -> Result<[usize; 2]> {
     let v: Vec<usize> = parse_list("resolution", s)?;
     match v.as_slice() {
-        [w, h] if *w > 0 && *h > 0 => Ok([*w, *h]),
+        [w, h] if *w > 0 && *h > 0 => {
+            solvers::budget::check(
+                format!("--resolution {w},{h}"),
+                solvers::budget::image_bytes(*w, *h),
+            )?;
+            Ok([*w, *h])
+        }
         _ => bail!("--resolution must be W,H with W, H > 0, got `{s}`"),
     }
 }
