@@ -223,16 +223,21 @@ impl Drop for Staging {
     }
 }
 
+/// The directory `target` is in (`.` for a bare name).
+fn parent_of(target: &Path) -> &Path {
+    match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
 /// `parent/.<file name of target>.<suffix>`.
 fn sibling(target: &Path, suffix: &str) -> PathBuf {
     let name = target
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".to_string());
-    target
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join(format!(".{name}.{suffix}"))
+    parent_of(target).join(format!(".{name}.{suffix}"))
 }
 
 /// Whether process `pid` is alive (Linux `/proc`; elsewhere assumed alive).
@@ -292,7 +297,7 @@ fn lock(target: &Path) -> Result<PathBuf> {
 /// With the lock held: puts back results an interrupted commit moved aside, and removes the
 /// staging directories of interrupted runs.
 fn recover(target: &Path) -> Result<()> {
-    let parent = target.parent().unwrap_or(Path::new("."));
+    let parent = parent_of(target);
     let Some(name) = target.file_name().map(|n| n.to_string_lossy().into_owned()) else {
         return Ok(());
     };
@@ -354,10 +359,9 @@ impl Ctx {
             return Ok(());
         }
         let target = self.target.clone();
-        if let Some(parent) = target.parent().filter(|p| !p.as_os_str().is_empty()) {
-            std::fs::create_dir_all(parent)
-                .with_context(|| format!("creating directory {}", parent.display()))?;
-        }
+        let parent = parent_of(&target);
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating directory {}", parent.display()))?;
         if target.exists() && !target.is_dir() {
             anyhow::bail!("--out {} exists and is not a directory", target.display());
         }

@@ -141,12 +141,11 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         bail!("{}: the scene has no [camera]", args.scene.display());
     };
     {
-        // The grid solver's state on the (downsampled) grid, for every colour channel.
+        // The grid solver's state on the (downsampled) grid (colour channels solve in turn).
         let [nx, ny, nz] = channels[0].medium.grid.n;
         let d = args.downsample.max(1);
         let voxels = [nx, ny, nz].map(|k| k.div_ceil(d));
-        let bytes = solvers::budget::bytes(&voxels, solvers::budget::SOLVER_BYTES_PER_VOXEL)
-            .saturating_mul(channels.len() as u64);
+        let bytes = solvers::budget::bytes(&voxels, solvers::budget::SOLVER_BYTES_PER_VOXEL);
         solvers::budget::check(
             format!(
                 "the grid of --scene {} ({nx}×{ny}×{nz} voxels, --downsample {d})",
