@@ -7,6 +7,8 @@
 //! cleanup, as a kill would): the previous results must stay byte-identical; a held lock
 //! must refuse a second writer; a rerun must leave no stale file.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use std::collections::BTreeMap;
 use std::os::unix::process::ExitStatusExt as _;
 use std::path::{Path, PathBuf};
