@@ -108,8 +108,8 @@ fn vol_scene(dir: &Path, name: &str, vol: &str) -> String {
     path.display().to_string()
 }
 
-/// A `.vol` whose header claims `n³` cells but which has no data.
-fn lying_vol(dir: &Path, n: i32) -> String {
+/// A `.vol` whose header claims `n³` cells, with `data` cells of data after it.
+fn vol_file(dir: &Path, name: &str, n: i32, data: usize) -> String {
     let mut b = b"VOL\x03".to_vec();
     for v in [1, n, n, n, 1] {
         b.extend_from_slice(&v.to_le_bytes());
@@ -117,7 +117,8 @@ fn lying_vol(dir: &Path, n: i32) -> String {
     for v in [0f32, 0., 0., 1., 1., 1.] {
         b.extend_from_slice(&v.to_le_bytes());
     }
-    let path = dir.join("lying.vol");
+    b.extend(std::iter::repeat_n(0u8, 4 * data));
+    let path = dir.join(name);
     std::fs::write(&path, b).unwrap();
     path.display().to_string()
 }
@@ -138,7 +139,9 @@ fn absurd_sizes_and_device_inputs_are_clear_errors_never_aborts() {
         "resolution = [100000, 100000]",
     );
     let zero_vol = vol_scene(&dir, "zero_vol.toml", "/dev/zero");
-    let lying = lying_vol(&dir, 1000);
+    let lying = vol_file(&dir, "lying.vol", 1000, 0);
+    let small = vol_file(&dir, "small.vol", 8, 512);
+    let small_scene = vol_scene(&dir, "small_vol.toml", &small);
     let lying_scene = vol_scene(&dir, "lying_vol.toml", &lying);
     let o = out.as_str();
     // (binary, flags, environment, words the message must contain)
@@ -228,6 +231,12 @@ fn absurd_sizes_and_device_inputs_are_clear_errors_never_aborts() {
             vec!["--scene", &scene, "--out", o],
             vec![("SCATTERBENCH_MEMORY_BUDGET", "100000")],
             vec!["SCATTERBENCH_MEMORY_BUDGET", "bytes"],
+        ),
+        (
+            env!("CARGO_BIN_EXE_render"),
+            vec!["--scene", &small_scene, "--out", o],
+            vec![("SCATTERBENCH_MEMORY_BUDGET", "5000")],
+            vec!["medium.file", "SCATTERBENCH_MEMORY_BUDGET", "bytes"],
         ),
         // `/dev/zero` as an input file: refused at once, never read.
         (
