@@ -7,11 +7,18 @@
 //! tracer (`--method pt`, on exactly the effects the grid pipeline would render, via
 //! `reference::effects`). The scene's `[effects]` table restricts what is rendered.
 //!
-//! Writes to `--out` (default `results/render/`):
-//! * `image.pfm` (radiance in physical units, 1 or 3 channels) and `image.png` (gamma 2.2,
+//! Writes to `--out` (default `results/render/`) what the scene's `[outputs] write` lists
+//! (default: the image):
+//! * `image`: `image.pfm` (radiance in physical units, 1 or 3 channels) and `image.png` (gamma 2.2,
 //!   white at the 99th percentile of the total image's largest channel);
 //! * per component that ran, `single.*`, `multiple.*`, `emission.*` (same exposure);
 //!   path tracer: also `image_stderr.pfm` (per-pixel standard errors);
+//! * `fluence`: `fluence.vol`, a Mitsuba `.vol` grid of φ of the multiple-scattering solve on
+//!   its solve grid (restricted and padded; the file's box is that grid's box), one channel
+//!   per colour channel (1 or 3). Grid methods only: the path tracer's camera render has no
+//!   fluence grid, and a plan without a multiple-scattering solve has no φ (both errors);
+//!
+//! and always:
 //! * `plan.json`: method, effects, the plan (passes with why, skipped passes with why), the
 //!   passes that ran with their seconds, and the multiple-scattering solves (method, grid,
 //!   steps, last change, stop reason, seconds);
@@ -31,7 +38,8 @@ use serde::Serialize;
 use solvers::Precision;
 use solvers::method::{Params, Tolerance};
 use solvers::pipeline::{self, PipelineConfig, Shadows};
-use solvers::scene::{Scene, SceneFile};
+use solvers::scene::vol::VolGrid;
+use solvers::scene::{OutputKind, Scene, SceneFile};
 use std::path::{Path, PathBuf};
 
 /// A `--shadows` value.
@@ -183,6 +191,15 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             false
         }
     };
+    let write_image = file.outputs.contains(&OutputKind::Image);
+    let write_fluence = file.outputs.contains(&OutputKind::Fluence);
+    if pt && write_fluence {
+        bail!(
+            "{}: `[outputs] write` lists `fluence`, but the path tracer's camera render has no \
+             fluence grid; use a grid method (e.g. --method fld) or drop `fluence`",
+            args.scene.display()
+        );
+    }
     let spp = args
         .spp
         .unwrap_or(channels[0].sampler.spp)
@@ -198,6 +215,8 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         }),
     )?;
     let [w, h] = camera.resolution;
+    // φ of every channel's multiple-scattering solve as one `.vol` grid (grid methods only).
+    let mut fluence: Option<VolGrid> = None;
     let (result, plan_json) = if pt {
         let (_, effects) = pipeline::effects_of(&channels, &file.effects, &config)?;
         if args.explain {
@@ -264,6 +283,14 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         )
     } else {
         let plan = pipeline::plan_channels(&channels, &file.effects, &config)?;
+        if write_fluence && !plan.runs("diffusion_solve") {
+            bail!(
+                "{}: `[outputs] write` lists `fluence`, but the plan runs no multiple-scattering \
+                 solve (no φ to write): the rendered effects are {}",
+                args.scene.display(),
+                plan.effects.names()
+            );
+        }
         if args.explain {
             println!("method: {}, downsample {}", config.method, args.downsample);
             print!("{}", plan.explain());
@@ -279,6 +306,9 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         out.record("backends", backends.meta());
         let r = pipeline::render_channels(&channels, &file.effects, &config, backend)
             .context("rendering with the pipeline")?;
+        if write_fluence {
+            fluence = Some(fluence_grid(&r.diffusion)?);
+        }
         let pick = |f: &dyn Fn(&pipeline::ChannelImages) -> Vec<f64>| -> Vec<Vec<f64>> {
             r.channels.iter().map(f).collect()
         };
@@ -329,9 +359,14 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
     )
     .context("writing plan.json")?;
     out.csv("passes.csv", &result.passes)?;
+    if let Some(vol) = &fluence {
+        let path = out.path("fluence.vol");
+        vol.write(&path)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     let white = white_point(&result.images[0].1);
     for (name, chans) in &result.images {
-        if chans.iter().all(|c| c.is_empty()) {
+        if !write_image || chans.iter().all(|c| c.is_empty()) {
             continue;
         }
         let is_total = name == "total";
@@ -354,6 +389,30 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
     }
     out.finish()?;
     Ok(result)
+}
+
+/// φ of the channels' solves (one record per channel, all on one solve grid) as a `.vol`
+/// grid with one channel per colour channel, on the solve grid's box.
+pub fn fluence_grid(solves: &[pipeline::DiffusionRecord]) -> Result<VolGrid> {
+    let Some(first) = solves.first() else {
+        bail!("no multiple-scattering solve ran: no fluence to write");
+    };
+    let grid = first.solve_grid;
+    if solves
+        .iter()
+        .any(|s| s.solve_grid != grid || s.phi.len() != grid.len())
+    {
+        bail!("the colour channels' solves differ in grid or size");
+    }
+    let one = VolGrid::from_field(&grid, &first.phi).context("fluence grid")?;
+    let channels = solves.len();
+    let mut data = vec![0.0f32; grid.len() * channels];
+    for (c, s) in solves.iter().enumerate() {
+        for (v, &p) in s.phi.iter().enumerate() {
+            data[v * channels + c] = p as f32;
+        }
+    }
+    VolGrid::new(one.dims, channels, one.min, one.max, data).context("fluence grid")
 }
 
 /// Caps the camera resolution at `max` pixels on the longer side (keeps the aspect).

@@ -209,6 +209,14 @@ pub struct DiffusionRecord {
     pub setup_seconds: f64,
     /// Backend, e.g. `cpu-f64`.
     pub backend: String,
+    /// The solve grid with its box (origin and Δl; not serialised, `grid` and `dl` are).
+    #[serde(skip)]
+    pub solve_grid: crate::Grid,
+    /// The solution φ on [`DiffusionRecord::solve_grid`], one value per voxel in the grid's
+    /// index order (not serialised: it is a field, not a record; `render` writes it as the
+    /// `fluence` output).
+    #[serde(skip)]
+    pub phi: Vec<f64>,
 }
 
 /// A rendered scene.
@@ -378,9 +386,10 @@ pub fn render_channels(
                         solve_seconds: sol.seconds,
                         setup_seconds: sol.setup_seconds,
                         backend: backend.to_string(),
+                        solve_grid: coarse.grid,
+                        phi: sol.phi.clone(),
                     });
-                    let solved = sol.phi;
-                    phi = Some((coarse.grid, solved));
+                    phi = Some((coarse.grid, sol.phi));
                 }
                 Pass::RaymarchSingle { lights, .. } => {
                     let ls: Vec<BakedLight> = baked

@@ -96,28 +96,50 @@ pub enum Light {
     },
 }
 
+/// The largest magnitude of a position coordinate (light, camera) and of a sphere light's
+/// radius, in world units. Beyond about 1e154 squared distances overflow to ∞ and the
+/// renderers' inverse-square and intersection terms become NaN (found by the fuzz test
+/// `reference/tests/fuzz_render.rs`: a point light at x = 1e308 rendered NaN pixels); 1e15
+/// leaves every product of two coordinates far from overflow and is far beyond any scene.
+pub const MAX_COORDINATE: f64 = 1e15;
+
+/// The largest light strength (point power, irradiance, radiance). Found by the fuzz test
+/// `reference/tests/fuzz_render.rs`: an irradiance of 1e308 gave the path tracer an infinite
+/// standard error (squared samples overflow); 1e15 keeps squares, and sums of squares over a
+/// grid in f32, finite.
+pub const MAX_STRENGTH: f64 = 1e15;
+
+/// `Err` naming `name` unless every coordinate of `p` is finite and within ±[`MAX_COORDINATE`].
+fn check_coordinates(name: &'static str, p: [f64; 3]) -> Result<(), SolverError> {
+    match p
+        .iter()
+        .find(|v| !(v.is_finite() && v.abs() <= MAX_COORDINATE))
+    {
+        Some(&v) => Err(SolverError::BadParameter {
+            name,
+            value: v,
+            reason: "coordinates must be finite and within ±1e15",
+        }),
+        None => Ok(()),
+    }
+}
+
 impl Light {
-    /// Checks that every parameter is finite and in range (unit direction, positive power).
+    /// Checks that every parameter is finite and in range (unit direction, positive power,
+    /// positions and radius within [`MAX_COORDINATE`], strengths at most [`MAX_STRENGTH`]).
     pub fn validate(&self) -> Result<(), SolverError> {
         let positive = |name: &'static str, v: f64| {
-            if v.is_finite() && v > 0.0 {
+            if v.is_finite() && v > 0.0 && v <= MAX_STRENGTH {
                 Ok(())
             } else {
                 Err(SolverError::BadParameter {
                     name,
                     value: v,
-                    reason: "must be finite and > 0",
+                    reason: "must be finite, > 0 and at most 1e15",
                 })
             }
         };
-        let finite3 = |name: &'static str, p: [f64; 3]| match p.iter().find(|v| !v.is_finite()) {
-            Some(&v) => Err(SolverError::BadParameter {
-                name,
-                value: v,
-                reason: "coordinates must be finite",
-            }),
-            None => Ok(()),
-        };
+        let finite3 = check_coordinates;
         match *self {
             Light::Point { position, power } => {
                 finite3("light.position", position)?;
@@ -204,6 +226,8 @@ pub struct Camera {
 impl Camera {
     /// Checks that the frame is well defined and the resolution non-zero.
     pub fn validate(&self) -> Result<(), SolverError> {
+        check_coordinates("camera.eye", self.eye)?;
+        check_coordinates("camera.target", self.target)?;
         let forward = sub(self.target, self.eye);
         if norm(forward).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return Err(SolverError::BadParameter {

@@ -42,7 +42,8 @@
 //! seed = 1
 //!
 //! [outputs]
-//! write = ["image"]              # "image" (camera render) and/or "fluence" (voxel grid)
+//! write = ["image"]              # "image" (camera render) and/or "fluence" (φ of the
+//!                                # multiple-scattering solve; `render` writes fluence.vol)
 //!
 //! [effects]                      # optional restriction of the rendered effects
 //! only = ["single_scattering"]   # (see scene::effects); default: everything the scene implies
