@@ -116,11 +116,14 @@ pub fn seeds() -> Vec<(String, String)> {
     out
 }
 
-/// Values a mutation puts in place of a value: huge, negative, non-finite, out of range for
+/// Values a mutation puts in place of a value: huge (100000 as a grid size or resolution is
+/// refused by the size checks of `solvers::budget` before anything is allocated), negative,
+/// non-finite, out of range for
 /// every integer type, and of every other TOML type.
 pub const VALUES: &[&str] = &[
     "0",
     "-1",
+    "100000",
     "1e308",
     "-1e308",
     "1e39",
