@@ -9,8 +9,9 @@
 //! * In benchmark mode only (`--bench`, no `--test`/`--list`/`--profile-time`), a summary per
 //!   method, backend and size: the median ms per step over [`SUMMARY_RUNS`] solves of
 //!   [`SUMMARY_STEPS`] steps, the effective bandwidth `Method::bytes_per_step / seconds`, and
-//!   the triad probe over the same footprint run right after (CPU rows; the GPU rows give the
-//!   GPU's own copy probe in `diffusion_gpu`); printed and written to
+//!   a bandwidth probe over the same footprint run right after in the same process (CPU rows:
+//!   the STREAM triad; GPU rows: the device's own copy kernel, `solvers::gpu::bandwidth`), with
+//!   the CPU model and the GPU adapter in every row; printed and written to
 //!   `results/bench/methods.csv`.
 //!
 //! Sizes: 32, 64, 128 by default; `SCATTERBENCH_BENCH_SIZES` overrides them; test mode
@@ -19,7 +20,7 @@
 use benches::bandwidth::{len_for_total_bytes, triad_gbs};
 use benches::cli::{benchmark_mode, fail, sizes, write_result};
 use criterion::{BenchmarkId, Criterion, Throughput};
-use solvers::gpu::GpuContext;
+use solvers::gpu::{GpuContext, bandwidth};
 use solvers::method::{self, Method, Params, Problem, Tolerance};
 use solvers::scene::Phase;
 use solvers::{Backend, Medium, Precision, scenes};
@@ -35,8 +36,20 @@ const SUMMARY_STEPS: usize = 20;
 /// Solves whose median the summary reports.
 const SUMMARY_RUNS: usize = 3;
 const CSV_PATH: &str = "results/bench/methods.csv";
-const CSV_HEADER: &str =
-    "n,method,backend,timer,ms_per_step,mvox_per_s,effective_gbs,triad_gbs,ratio_triad";
+const CSV_HEADER: &str = "n,method,backend,timer,ms_per_step,mvox_per_s,effective_gbs,probe,probe_gbs,ratio_probe,cpu,adapter";
+
+/// The CPU model (`/proc/cpuinfo`), or `unknown`; commas replaced (it goes into a CSV cell).
+fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().replace(',', " "))
+        })
+        .unwrap_or_else(|| "unknown".into())
+}
 
 fn methods() -> Vec<Box<dyn Method>> {
     method::METHODS
@@ -117,6 +130,7 @@ fn main() {
         return;
     }
 
+    let cpu = cpu_model();
     let mut csv = format!("{CSV_HEADER}\n");
     println!("\nmethods bench summary ({SUMMARY_STEPS} steps, median of {SUMMARY_RUNS} solves)");
     for b in &backends {
@@ -133,16 +147,24 @@ fn main() {
                 let per_step = seconds / SUMMARY_STEPS as f64;
                 let bytes = m.bytes_per_step(&medium.grid, b.precision());
                 let effective = bytes as f64 / per_step / 1e9;
-                let triad = match b {
-                    Backend::Cpu(_) => triad_gbs(len_for_total_bytes(bytes, 3), 5),
-                    Backend::Gpu(_) => f64::NAN,
+                let (probe, probe_gbs) = match b {
+                    Backend::Cpu(_) => ("triad", triad_gbs(len_for_total_bytes(bytes, 3), 5)),
+                    Backend::Gpu(ctx) => {
+                        match bandwidth::copy_gbs(ctx, (bytes / 2) as u64, 10, 3) {
+                            Ok(c) => ("gpu-copy", c.gbs),
+                            Err(e) => fail("methods", &format!("GPU copy probe: {e}")),
+                        }
+                    }
                 };
                 let mvox = medium.grid.len() as f64 / per_step / 1e6;
+                let adapter = b
+                    .gpu()
+                    .map_or("none".to_string(), |c| c.info().name.replace(',', " "));
                 let line = format!(
-                    "{n},{},{b},{timer},{:.4},{mvox:.2},{effective:.3},{triad:.3},{:.4}",
+                    "{n},{},{b},{timer},{:.4},{mvox:.2},{effective:.3},{probe},{probe_gbs:.3},{:.4},{cpu},{adapter}",
                     m.name(),
                     per_step * 1e3,
-                    effective / triad
+                    effective / probe_gbs
                 );
                 println!("{line}");
                 let _ = writeln!(csv, "{line}");

@@ -157,6 +157,15 @@ pub struct MethodEntry {
     pub renderer: Renderer,
 }
 
+impl From<Renderer> for MethodEntry {
+    fn from(renderer: Renderer) -> Self {
+        MethodEntry {
+            name: renderer.name(),
+            renderer,
+        }
+    }
+}
+
 impl MethodEntry {
     /// Its settings (`quick` for CI-sized runs; `spp` is the path tracer's ladder).
     pub fn settings(&self, quick: bool, spp: &[u32]) -> Vec<Setting> {
@@ -179,13 +188,7 @@ impl MethodEntry {
 /// [`solvers::method::METHODS`] with its defaults (`cda`, `fld:lp`, `lbm`, …). A method
 /// registered there joins the atlas without an edit here.
 pub fn methods() -> Vec<MethodEntry> {
-    Renderer::all()
-        .into_iter()
-        .map(|renderer| MethodEntry {
-            name: renderer.name(),
-            renderer,
-        })
-        .collect()
+    Renderer::all().into_iter().map(MethodEntry::from).collect()
 }
 
 fn pt_settings(_quick: bool, spp: &[u32]) -> Vec<Setting> {
@@ -451,10 +454,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         )
         .context("--methods")?
         .into_iter()
-        .map(|renderer| MethodEntry {
-            name: renderer.name(),
-            renderer,
-        })
+        .map(MethodEntry::from)
         .collect(),
     };
     let scenes = scene_paths(&args.scenes)?;
@@ -596,6 +596,18 @@ fn plot_scene(out: &Ctx, scene: &str, points: &[Point]) -> Result<()> {
 #[derive(Debug)]
 pub struct AccuracyCost;
 
+/// The columns of `fastest.csv` (promised, and read back by the report).
+const FASTEST_COLUMNS: &[&str] = &[
+    "scene",
+    "target",
+    "method",
+    "setting",
+    "backend",
+    "seconds",
+    "error",
+    "resolvable",
+];
+
 impl Experiment for AccuracyCost {
     const NAME: &'static str = "accuracy_cost";
     const TITLE: &'static str = "Accuracy vs time atlas";
@@ -629,19 +641,7 @@ impl Experiment for AccuracyCost {
                 "references.csv",
                 &["scene", "spp", "seconds", "noise", "channels", "effects"],
             ),
-            Promise::csv(
-                "fastest.csv",
-                &[
-                    "scene",
-                    "target",
-                    "method",
-                    "setting",
-                    "backend",
-                    "seconds",
-                    "error",
-                    "resolvable",
-                ],
-            ),
+            Promise::csv("fastest.csv", FASTEST_COLUMNS),
         ];
         // Plots are named after the scene, which the registered datasets name after their file.
         for path in scene_paths(&args.scenes).unwrap_or_default() {
@@ -661,16 +661,7 @@ impl Experiment for AccuracyCost {
 
     fn report(s: &Section<'_>) -> Result<String> {
         let fastest = s.csv("fastest.csv")?;
-        fastest.require(&[
-            "scene",
-            "target",
-            "method",
-            "setting",
-            "backend",
-            "seconds",
-            "error",
-            "resolvable",
-        ])?;
+        fastest.require(FASTEST_COLUMNS)?;
         let points = s.csv("points.csv")?;
         points.require(&[
             "scene",

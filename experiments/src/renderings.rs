@@ -437,6 +437,17 @@ pub fn quarter(rows: &[ErrorRow]) -> Vec<QuarterRow> {
 #[derive(Debug)]
 pub struct Renderings;
 
+/// The columns of `claim.csv` (promised, and read back by the report).
+const CLAIM_COLUMNS: &[&str] = &[
+    "scene",
+    "albedo",
+    "downsample",
+    "fld_lp_error_multiple",
+    "cda_error_multiple",
+    "reference_noise_multiple",
+    "fld_lower",
+];
+
 impl Experiment for Renderings {
     const NAME: &'static str = "renderings";
     const TITLE: &'static str = "Renderings: path tracing vs FLD vs CDA (FLD Figs 1, 6, 7)";
@@ -468,18 +479,7 @@ impl Experiment for Renderings {
                     "iterations",
                 ],
             ),
-            Promise::csv(
-                "claim.csv",
-                &[
-                    "scene",
-                    "albedo",
-                    "downsample",
-                    "fld_lp_error_multiple",
-                    "cda_error_multiple",
-                    "reference_noise_multiple",
-                    "fld_lower",
-                ],
-            ),
+            Promise::csv("claim.csv", CLAIM_COLUMNS),
             Promise::csv(
                 "quarter.csv",
                 &[
@@ -505,15 +505,7 @@ impl Experiment for Renderings {
 
     fn report(s: &Section<'_>) -> Result<String> {
         let claim = s.csv("claim.csv")?;
-        claim.require(&[
-            "scene",
-            "albedo",
-            "downsample",
-            "fld_lp_error_multiple",
-            "cda_error_multiple",
-            "reference_noise_multiple",
-            "fld_lower",
-        ])?;
+        claim.require(CLAIM_COLUMNS)?;
         let quarter = s.csv("quarter.csv")?;
         quarter.require(&[
             "scene",

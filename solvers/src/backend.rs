@@ -15,6 +15,14 @@ pub enum Precision {
 }
 
 impl Precision {
+    /// Bytes per value: 4 or 8.
+    pub fn bytes(&self) -> usize {
+        match self {
+            Precision::F32 => 4,
+            Precision::F64 => 8,
+        }
+    }
+
     /// `"f32"` or `"f64"`.
     pub fn name(&self) -> &'static str {
         match self {

@@ -96,10 +96,7 @@ impl Method for FldMethod {
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {
         // Words per voxel and iteration as `CpuFld::bytes_per_iteration` counts them: 7 for
         // a constant limiter (CDA), 9 for FLD (the D update reads and writes more).
-        let word = match precision {
-            Precision::F32 => 4,
-            Precision::F64 => 8,
-        };
+        let word = precision.bytes();
         let per_voxel = if self.config.limiter.is_constant() {
             7
         } else {

@@ -84,10 +84,7 @@ impl Method for LbmMethod {
 
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {
         // 19 values read and 19 written per site (as `CpuLbm::bytes_per_step`).
-        let word = match precision {
-            Precision::F32 => 4,
-            Precision::F64 => 8,
-        };
+        let word = precision.bytes();
         2 * Q * grid.len() * word
     }
 }
