@@ -21,6 +21,11 @@ pub struct CommonArgs {
     /// Hide progress bars (they are also hidden when stderr is not a terminal).
     #[arg(long)]
     pub no_progress: bool,
+    /// Run even when the cost estimate exceeds the work budget (see `experiments::cost`:
+    /// 4 h of this machine's cores at a nominal rate, or `SCATTERBENCH_WORK_BUDGET`
+    /// operations).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Where the grid solvers run.
@@ -197,6 +202,7 @@ pub struct Ctx {
     name: String,
     quick: bool,
     no_progress: bool,
+    force: bool,
     started: Instant,
     timings: Vec<(String, f64)>,
     params: serde_json::Value,
@@ -337,6 +343,7 @@ impl Ctx {
             name: name.to_string(),
             quick: args.quick,
             no_progress: args.no_progress,
+            force: args.force,
             started: Instant::now(),
             timings: Vec::new(),
             params: serde_json::Value::Null,
@@ -433,6 +440,14 @@ impl Ctx {
         Ok(())
     }
 
+    /// Checks the run's cost estimate against the work budget (refused unless `--force`)
+    /// and records it in `meta.json` as `work_estimate`. Call it before the work starts.
+    pub fn work(&mut self, estimate: &crate::cost::Estimate) -> Result<()> {
+        estimate.check(self.force)?;
+        self.record("work_estimate", estimate.meta());
+        Ok(())
+    }
+
     /// Whether this is a CI-sized (`--quick`) run.
     pub fn quick(&self) -> bool {
         self.quick
@@ -450,6 +465,23 @@ impl Ctx {
     /// terminal).
     pub fn progress(&self, len: u64, what: &str) -> ProgressBar {
         bar(len, self.no_progress, what)
+    }
+
+    /// A spinner with elapsed time for one long step without a step count (hidden like
+    /// [`Ctx::progress`]); finish it with `finish_and_clear`.
+    pub fn spinner(&self, what: &str) -> ProgressBar {
+        if self.no_progress {
+            return ProgressBar::hidden();
+        }
+        let pb = ProgressBar::new_spinner();
+        if let Ok(style) =
+            ProgressStyle::with_template("{spinner} {prefix} [{elapsed_precise}] {msg}")
+        {
+            pb.set_style(style);
+        }
+        pb.set_prefix(what.to_string());
+        pb.enable_steady_tick(std::time::Duration::from_millis(250));
+        pb
     }
 
     /// Path of a file in the output directory (the staging directory while the run is in
@@ -618,4 +650,80 @@ where
         anyhow::bail!("--{flag}: give at least one value (comma-separated)");
     }
     Ok(v)
+}
+
+/// Parses a count flag (`value_parser = count`): a whole number ≥ 1, also in the float
+/// notation the help texts use (`4e6`, `1e3`, `2.5e5`); `_` separators (`4_000_000`) are
+/// accepted. Zero is refused: no count flag (paths, samples, steps, sizes) means anything
+/// at 0.
+pub fn count(s: &str) -> std::result::Result<u64, String> {
+    let t = s.trim().replace('_', "");
+    if let Ok(v) = t.parse::<u64>() {
+        return if v >= 1 {
+            Ok(v)
+        } else {
+            Err("must be at least 1".into())
+        };
+    }
+    let v: f64 = t
+        .parse()
+        .map_err(|_| format!("`{s}` is not a count (write e.g. 4000000 or 4e6)"))?;
+    if !(v.is_finite() && v >= 1.0 && v.fract() == 0.0 && v < 1.8e19) {
+        return Err(format!("`{s}` is not a whole number in [1, 1.8e19)"));
+    }
+    Ok(v as u64)
+}
+
+/// [`count`] for `u32` flags (samples per pixel, batches).
+pub fn count_u32(s: &str) -> std::result::Result<u32, String> {
+    let v = count(s)?;
+    u32::try_from(v).map_err(|_| format!("`{s}` is more than {}", u32::MAX))
+}
+
+/// [`count`] for `usize` flags (grid sizes, resolutions, step caps).
+pub fn count_usize(s: &str) -> std::result::Result<usize, String> {
+    let v = count(s)?;
+    usize::try_from(v).map_err(|_| format!("`{s}` is too large"))
+}
+
+/// `v` for a message: the shortest round-trip form, in exponent notation below 10⁻⁴ or from
+/// 10⁶ on (`1e-9`, `1e300`, `0.25`, `4000`).
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v != 0.0 && a.is_finite() && !(1e-4..1e6).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+#[cfg(test)]
+mod count_tests {
+    use super::count;
+
+    #[test]
+    fn counts_in_float_notation() {
+        assert_eq!(count("4e6"), Ok(4_000_000));
+        assert_eq!(count("1e3"), Ok(1000));
+        assert_eq!(count("2.5e5"), Ok(250_000));
+        assert_eq!(count("4_000_000"), Ok(4_000_000));
+        assert_eq!(count(" 64000 "), Ok(64_000));
+        assert!(count("0").is_err());
+        assert!(count("0e0").is_err());
+        assert!(count("1.5").is_err());
+        assert!(count("-1").is_err());
+        assert!(count("1e30").is_err());
+        assert!(count("inf").is_err());
+        assert!(count("many").is_err());
+    }
+
+    #[test]
+    fn numbers_in_messages_are_compact() {
+        use super::num;
+        assert_eq!(num(1e300), "1e300");
+        assert_eq!(num(1e-9), "1e-9");
+        assert_eq!(num(0.25), "0.25");
+        assert_eq!(num(4000.0), "4000");
+        assert_eq!(num(0.0), "0");
+    }
 }

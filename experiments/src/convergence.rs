@@ -30,7 +30,7 @@ pub struct Args {
     #[command(flatten)]
     pub backend: BackendArgs,
     /// Grid for (a) and (c). Default 51 (25 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_usize)]
     pub n: Option<usize>,
     /// SOR factors for (a).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "1.0,1.3,1.5,1.7,1.8,1.9")]
@@ -45,7 +45,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "1e-1,1e-2,1e-3,1e-4,1e-5,1e-6")]
     pub sigma_eps: Vec<f64>,
     /// Iteration cap per solve.
-    #[arg(long, default_value_t = 6000)]
+    #[arg(long, default_value_t = 6000, value_parser = crate::common::count_usize)]
     pub max_iterations: usize,
     /// Seed of the Perlin emission.
     #[arg(long, default_value_t = 1)]
@@ -176,6 +176,17 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<IterRow>> {
             f32: true,
         });
     }
+    let mut work = crate::cost::Estimate::new();
+    for j in &jobs {
+        work.add(
+            format!(
+                "case {} (n = {}): --max-iterations {} × {}³ voxels",
+                j.case, j.n, args.max_iterations, j.n
+            ),
+            args.max_iterations as f64 * (j.n as f64).powi(3),
+        );
+    }
+    ctx.work(&work)?;
     let params = serde_json::json!({"n": n, "omega": omegas, "resolutions": resolutions, "omega_sweep": args.omega_sweep, "sigma_eps_times_L": eps, "max_iterations": args.max_iterations, "seed": args.seed, "limiter": "lp"});
     let backends = args.backend.open()?;
     ctx.start(params)?;

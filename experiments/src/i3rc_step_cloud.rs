@@ -97,26 +97,6 @@ pub const CASES: [Case; 4] = [
     },
 ];
 
-/// Parses a path count written as an integer (`1000000`, `1_000_000`) or in float notation
-/// (`1e6`, `2.5e6`); it must be a whole number ≥ 1.
-pub fn parse_count(s: &str) -> Result<u64, String> {
-    let t = s.trim().replace('_', "");
-    if let Ok(n) = t.parse::<u64>() {
-        return if n >= 1 {
-            Ok(n)
-        } else {
-            Err("must be at least 1".into())
-        };
-    }
-    let x: f64 = t
-        .parse()
-        .map_err(|_| format!("`{s}` is not a number (write e.g. 1000000 or 1e6)"))?;
-    if !(x.is_finite() && x >= 1.0 && x.fract() == 0.0 && x <= 1e18) {
-        return Err(format!("`{s}` is not a whole number in [1, 1e18]"));
-    }
-    Ok(x as u64)
-}
-
 /// Flags of `i3rc_step_cloud`.
 #[derive(Debug, Clone, clap::Parser)]
 #[command(about = "I3RC Phase 1 step cloud: per-column reflectance, transmittance, absorptance")]
@@ -125,14 +105,14 @@ pub struct Args {
     #[command(flatten)]
     pub common: CommonArgs,
     /// Paths per experiment (default 1.6e7; 64000 with --quick). Accepts 1e6 notation.
-    #[arg(long, value_parser = parse_count)]
+    #[arg(long, value_parser = crate::common::count)]
     pub paths: Option<u64>,
     /// Seed (experiment k uses seed + k − 1).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Batches for the standard errors (≥ 16; 64 so that the stderr estimates themselves
     /// scatter by only ~9 %).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 64, value_parser = crate::common::count_u32)]
     pub batches: u32,
 }
 
@@ -244,6 +224,18 @@ fn run_in(out: &mut Ctx, args: &Args) -> Result<Summary> {
     } else {
         DEFAULT_PATHS
     });
+    let mut work = crate::cost::Estimate::new();
+    for case in &CASES {
+        let events = crate::cost::slab_events(18.0, case.albedo);
+        work.add(
+            format!(
+                "experiment {}: {paths} paths × {events:.3e} events",
+                case.experiment
+            ),
+            paths as f64 * events,
+        );
+    }
+    out.work(&work)?;
     out.start(serde_json::json!({
         "paths_per_experiment": paths, "seed": args.seed, "batches": args.batches,
         "cases": CASES, "columns": COLUMNS, "period_km": PERIOD_KM,
@@ -459,17 +451,6 @@ mod tests {
     use super::*;
     use crate::common::csv_header;
     use clap::Parser;
-
-    #[test]
-    fn path_counts_accept_float_notation() {
-        assert_eq!(parse_count("1e6"), Ok(1_000_000));
-        assert_eq!(parse_count("2.5e6"), Ok(2_500_000));
-        assert_eq!(parse_count("1_000"), Ok(1000));
-        assert_eq!(parse_count(" 64000 "), Ok(64_000));
-        for bad in ["0", "1.5", "-3", "abc", "inf", "1e30"] {
-            assert!(parse_count(bad).is_err(), "{bad}");
-        }
-    }
 
     /// The quick run writes its interface, conserves energy per experiment, and shows the
     /// physics of the step: the thick half reflects more than the thin half, the thin half

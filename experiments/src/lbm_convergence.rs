@@ -42,7 +42,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "1e-3,1e-4,1e-5")]
     pub tolerance: Vec<f64>,
     /// Step cap as a multiple of N.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = crate::common::count_usize)]
     pub max_steps_factor: usize,
     /// Precision of CPU runs.
     #[arg(long, value_enum, default_value = "f32")]
@@ -145,6 +145,16 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepsRow>> {
     let tmin = tols.iter().cloned().fold(f64::INFINITY, f64::min);
     let precision: Precision = args.precision.precision();
     let backends = args.backend.open()?;
+    let mut work = crate::cost::Estimate::new();
+    for &n in &sizes {
+        work.add(
+            format!("--sizes {n}: 2 series × {} backend(s) × --max-steps-factor {} × {n} steps × {n}³ voxels", backends.list(precision).len(), args.max_steps_factor),
+            2.0 * backends.list(precision).len() as f64
+                * args.max_steps_factor as f64
+                * (n as f64).powi(4),
+        );
+    }
+    ctx.work(&work)?;
     let params = serde_json::json!({
         "sizes": sizes, "tolerance": tols, "max_steps_factor": args.max_steps_factor,
         "precision": args.precision.name(), "light": [0.4, 0.5, -1.0], "albedo": 0.9, "seed": 7,

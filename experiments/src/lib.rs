@@ -10,6 +10,7 @@
 pub mod accuracy_cost;
 pub mod common;
 pub mod convergence;
+pub mod cost;
 pub mod experiment;
 pub mod i3rc_step_cloud;
 pub mod images;

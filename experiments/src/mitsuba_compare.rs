@@ -47,16 +47,16 @@ pub struct Args {
     #[arg(long)]
     pub scene: PathBuf,
     /// Paths per pixel for each renderer (default: the scene's sampler.spp; 64 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_u32)]
     pub spp: Option<u32>,
     /// Override the camera resolution, `W,H` (default: the scene's; 32,32 with --quick).
     #[arg(long)]
     pub resolution: Option<String>,
     /// Independent Mitsuba renders K for its standard errors.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::common::count_u32)]
     pub renders: u32,
     /// Batches of our render for its standard errors.
-    #[arg(long, default_value_t = MIN_BATCHES)]
+    #[arg(long, default_value_t = MIN_BATCHES, value_parser = crate::common::count_u32)]
     pub batches: u32,
     /// Mitsuba variants, comma-separated (e.g. `scalar_rgb,llvm_ad_rgb`).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<String>, default_value = "scalar_rgb")]
@@ -68,8 +68,12 @@ pub struct Args {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Most scattering events per path (default: unlimited).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_u32)]
     pub max_depth: Option<u32>,
+    /// Kill a Mitsuba render that runs longer than this many seconds (default:
+    /// `SCATTERBENCH_MITSUBA_TIMEOUT`, else 3600).
+    #[arg(long)]
+    pub mitsuba_timeout: Option<f64>,
 }
 
 /// One row of `comparison.csv`.
@@ -215,6 +219,29 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
     if variants.is_empty() {
         bail!("--variant: give at least one Mitsuba variant");
     }
+    if let Some(t) = args.mitsuba_timeout
+        && !(t.is_finite() && t > 0.0)
+    {
+        bail!("--mitsuba-timeout {t}: must be a positive number of seconds");
+    }
+    let [width, height] = camera.resolution;
+    let events = crate::cost::path_events(&scene.medium);
+    let paths = spp as f64 * (width * height) as f64;
+    let mut work = crate::cost::Estimate::new();
+    work.add(
+        format!("our render, {spp} spp × {width}×{height} pixels × {events:.3e} events"),
+        paths * events,
+    );
+    work.add(
+        format!("{} Mitsuba render(s) of the same paths", variants.len()),
+        paths * events * variants.len() as f64,
+    );
+    ctx.work(&work)?;
+    let warnings = solvers::scene::warnings::degenerate(&scene, None);
+    for w in &warnings {
+        eprintln!("warning: {}: {w}", args.scene.display());
+    }
+    ctx.record("warnings", serde_json::json!(warnings));
     let mut versions = Vec::new();
     for v in &variants {
         // Not installed is not a failure of the comparison: `figures` skips it with the hint.
@@ -231,12 +258,12 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
         .file_name()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let [width, height] = camera.resolution;
     let params = serde_json::json!({
         "scene": args.scene.display().to_string(),
         "width": width, "height": height, "spp": spp, "seed": seed,
         "batches": args.batches, "renders": args.renders, "spp_per_render": spp_per_render,
         "alpha": args.alpha, "max_depth": args.max_depth,
+        "mitsuba_timeout_seconds": args.mitsuba_timeout.unwrap_or_else(|| reference::mitsuba::default_timeout().as_secs_f64()),
         "mitsuba": {
             "version": versions.first(),
             "variants": variants,
@@ -258,7 +285,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
     };
     let t0 = Instant::now();
     let c0 = process_cpu_seconds();
+    let sp = out.spinner("mitsuba_compare");
+    sp.set_message(format!("our path tracer, {spp} spp"));
     let ours = render_image(&scene, &settings).context("rendering with our path tracer")?;
+    sp.finish_and_clear();
     let ours_seconds = t0.elapsed().as_secs_f64();
     let ours_cpu = match (c0, process_cpu_seconds()) {
         (Some(a), Some(b)) => b - a,
@@ -279,9 +309,13 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
             seed,
             max_depth: args.max_depth,
             keep_dir: None,
+            timeout: args.mitsuba_timeout.map(std::time::Duration::from_secs_f64),
         };
+        let sp = out.spinner("mitsuba_compare");
+        sp.set_message(format!("Mitsuba {variant}, {} renders", args.renders));
         let r = render(&scene, &ms, &cfg)
             .with_context(|| format!("rendering with Mitsuba {variant}"))?;
+        sp.finish_and_clear();
         out.timing(
             format!("mitsuba {variant} (wall, with start-up)"),
             r.wall_seconds,

@@ -34,7 +34,7 @@ pub struct Args {
     #[command(flatten)]
     pub backend: BackendArgs,
     /// Grid resolution (odd). Default 127 (31 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_usize)]
     pub n: Option<usize>,
     /// Optical depth across the grid.
     #[arg(long, default_value_t = 4.0)]
@@ -62,7 +62,7 @@ pub struct Args {
     #[arg(long)]
     pub tolerance: Option<f64>,
     /// Iteration cap per solve.
-    #[arg(long, default_value_t = 20_000)]
+    #[arg(long, default_value_t = 20_000, value_parser = crate::common::count_usize)]
     pub max_iterations: usize,
 }
 
@@ -243,6 +243,27 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
             }
         }
     }
+    if let Some(t) = args.tolerance
+        && !(t.is_finite() && (0.0..1.0).contains(&t))
+    {
+        bail!("--tolerance {t}: must be in [0, 1) (0 runs exactly --max-iterations steps)");
+    }
+    let rel = args.tolerance.unwrap_or(match args.precision {
+        PrecisionArg::F64 => 1e-6,
+        PrecisionArg::F32 => 1e-4,
+    });
+    let steps = crate::cost::solve_steps(n, rel, args.max_iterations);
+    let mut work = crate::cost::Estimate::new();
+    work.add(
+        format!(
+            "{} cases × {steps:.0} iterations (--max-iterations {}, tolerance {rel:e}) × {n}³ \
+             voxels",
+            cases.len(),
+            args.max_iterations
+        ),
+        cases.len() as f64 * steps * (n as f64).powi(3),
+    );
+    ctx.work(&work)?;
     let params = serde_json::json!({
         "n": n, "tau_extent": args.tau_extent, "albedo": albedos, "limiters": limiters.iter().map(|l| l.to_string()).collect::<Vec<_>>(),
         "boundary": value_names(&args.boundary), "effective_albedo": args.effective_albedo, "precision": args.precision.name(),

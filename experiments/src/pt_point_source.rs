@@ -45,13 +45,13 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0,0.05,0.1,0.2,0.35,0.5,0.75,1,1.5,2,2.5,3,4,5")]
     pub edges: Vec<f64>,
     /// Paths per albedo (default 4e7; 2e5 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count)]
     pub paths: Option<u64>,
     /// Seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Batches for the standard errors (≥ 16).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, value_parser = crate::common::count_u32)]
     pub batches: u32,
 }
 
@@ -146,6 +146,18 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<ShellRow>> {
     } else {
         DEFAULT_PATHS
     });
+    let mut work = crate::cost::Estimate::new();
+    for &c in &albedos {
+        work.add(
+            format!(
+                "--albedo {c}: {paths} paths × {:.3e} collisions × {} g values",
+                crate::cost::infinite_events(c),
+                gs.len()
+            ),
+            paths as f64 * crate::cost::infinite_events(c) * gs.len() as f64,
+        );
+    }
+    ctx.work(&work)?;
     ctx.start(serde_json::json!({
         "albedo": albedos, "g": gs, "edges": edges, "paths": paths,
         "seed": args.seed, "batches": args.batches, "sigma_t": 1.0, "source_power": 1.0,

@@ -43,13 +43,13 @@ pub struct Args {
     #[command(flatten)]
     pub common: CommonArgs,
     /// Grid resolution n (n³ voxels). Default 128 (32 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_usize)]
     pub n: Option<usize>,
     /// Image width and height in pixels. Default 128 (24 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_usize)]
     pub res: Option<usize>,
     /// Samples per pixel. Default 256 (16 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_u32)]
     pub spp: Option<u32>,
     /// Albedo of the cloud.
     #[arg(long, default_value_t = 0.9)]
@@ -60,9 +60,10 @@ pub struct Args {
     /// nearest or trilinear.
     #[arg(long, value_enum, default_value = "nearest")]
     pub interpolation: InterpolationArg,
-    /// Also render with one global majorant for comparison.
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    pub global: bool,
+    /// Skip the comparison render with one global majorant (by default both the blocked
+    /// and the global majorant render, so the table shows what the blocks buy).
+    #[arg(long)]
+    pub no_global: bool,
     /// Seed (noise and paths).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -169,8 +170,22 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<TimingRow>> {
         InterpolationArg::Nearest => Interpolation::Nearest,
         InterpolationArg::Trilinear => Interpolation::Trilinear,
     };
+    if spp < reference::pathtracer::MIN_BATCHES {
+        bail!(
+            "--spp {spp}: at least {} samples per pixel (one per batch of the standard errors)",
+            reference::pathtracer::MIN_BATCHES
+        );
+    }
     let scene =
         cloud_scene(n, args.albedo, args.g, res, args.seed).context("building the cloud")?;
+    let renders = if args.no_global { 1.0 } else { 2.0 };
+    let events = crate::cost::path_events(&scene.medium);
+    let mut work = crate::cost::Estimate::new();
+    work.add(
+        format!("{renders} renders of {spp} spp × {res}² pixels × {events:.3e} events"),
+        renders * spp as f64 * (res * res) as f64 * events,
+    );
+    ctx.work(&work)?;
     ctx.start(serde_json::json!({
         "n": n, "res": res, "spp": spp, "albedo": args.albedo, "g": args.g,
         "interpolation": value_names(&[args.interpolation]), "seed": args.seed,
@@ -179,11 +194,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<TimingRow>> {
     let settings = RenderSettings {
         spp,
         seed: args.seed,
-        batches: 16,
+        batches: reference::pathtracer::MIN_BATCHES,
         contributions: Contributions::all(),
     };
     let mut cases = vec![("blocks8", 8usize)];
-    if args.global {
+    if !args.no_global {
         cases.push(("global", n));
     }
     let mut rows = Vec::new();
@@ -194,7 +209,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<TimingRow>> {
             majorant_block: block,
         };
         let (t0, c0) = (Instant::now(), cpu_seconds());
+        let sp = out.spinner("pt_render");
+        sp.set_message(format!("{name} majorants, {spp} spp × {res}² pixels"));
         let img = render_image_with(&scene, &settings, &opts)?;
+        sp.finish_and_clear();
         let seconds = t0.elapsed().as_secs_f64();
         let cpu = cpu_seconds() - c0;
         out.timing(format!("render {name}"), seconds);

@@ -44,13 +44,13 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "1,0.5")]
     pub mu0: Vec<f64>,
     /// Paths per case (default 4e6; 1e5 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count)]
     pub paths: Option<u64>,
     /// Seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Batches for the standard errors (≥ 16).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, value_parser = crate::common::count_u32)]
     pub batches: u32,
 }
 
@@ -137,6 +137,28 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<SlabRow>> {
     } else {
         4_000_000
     });
+    if let Some(c) = albedos.iter().find(|c| !(0.0..=1.0).contains(*c)) {
+        bail!("--albedo: {c} is outside [0, 1]");
+    }
+    if taus.iter().any(|t| t.is_infinite()) && albedos.iter().any(|&c| c >= 1.0) {
+        bail!(
+            "--tau inf with --albedo 1: in a conservative half-space a path's expected number \
+             of collisions is infinite (no path is absorbed), so the run would never finish; \
+             use c < 1 with τ = inf, or a finite τ"
+        );
+    }
+    let mut work = crate::cost::Estimate::new();
+    let per_case = (gs.len() * mu0s.len()) as f64;
+    for &tau in &taus {
+        for &c in &albedos {
+            let events = crate::cost::slab_events(tau, c);
+            work.add(
+                format!("--tau {tau} --albedo {c}: {paths} paths × {events:.3e} events"),
+                paths as f64 * events * per_case,
+            );
+        }
+    }
+    ctx.work(&work)?;
     ctx.start(serde_json::json!({
         "tau": taus.iter().map(|t| t.to_string()).collect::<Vec<_>>(),
         "albedo": albedos, "g": gs, "mu0": mu0s, "paths": paths,

@@ -54,7 +54,8 @@ pub enum ShadowsArg {
 /// Flags of `render`.
 #[derive(Debug, Clone, clap::Parser)]
 #[command(
-    about = "Render a scene file with the path tracer or the grid pipeline (any registered method)"
+    about = "Render a scene file with the path tracer or the grid pipeline (any registered method)",
+    allow_negative_numbers = true
 )]
 pub struct Args {
     /// Shared flags.
@@ -73,24 +74,33 @@ pub struct Args {
     /// Print the plan and why each pass runs or not.
     #[arg(long)]
     pub explain: bool,
-    /// Path-tracer samples per pixel (default: the scene's `[sampler] spp`).
-    #[arg(long)]
+    /// Path-tracer samples per pixel (default: the scene's `[sampler] spp`; at least 16,
+    /// the batches of the per-pixel standard errors). Path tracer only.
+    #[arg(long, value_parser = crate::common::count_u32)]
     pub spp: Option<u32>,
-    /// Downsampling factor of the diffusion grid.
-    #[arg(long, default_value_t = 4)]
-    pub downsample: usize,
-    /// CPU precision of the diffusion solve (`f32` or `f64`; the GPU is f32).
-    #[arg(long, value_enum, default_value = "f64")]
-    pub precision: PrecisionArg,
-    /// Raymarch sub-step as a fraction of a voxel.
-    #[arg(long, default_value_t = 0.5)]
-    pub step: f64,
-    /// Stratified rays per pixel and axis in the raymarch.
-    #[arg(long, default_value_t = 1)]
-    pub pixel_samples: usize,
-    /// `exact` shadow rays or the paper's `dsm` (deep shadow map) in single scattering.
-    #[arg(long, value_enum, default_value = "exact")]
-    pub shadows: ShadowsArg,
+    /// Path-tracer seed (default: the scene's `[sampler] seed`). Path tracer only.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Downsampling factor of the diffusion grid (default 4; every axis keeps at least 4
+    /// voxels). Grid methods only.
+    #[arg(long, value_parser = crate::common::count_usize)]
+    pub downsample: Option<usize>,
+    /// CPU precision of the diffusion solve (`f32` or `f64`, default f64; the GPU is f32).
+    /// Grid methods on the CPU only.
+    #[arg(long, value_enum)]
+    pub precision: Option<PrecisionArg>,
+    /// Raymarch sub-step as a fraction of a voxel (default 0.5; in [1e-3, 1]). Grid methods
+    /// only.
+    #[arg(long)]
+    pub step: Option<f64>,
+    /// Stratified rays per pixel and axis in the raymarch (default 1; at most 64). Grid
+    /// methods only.
+    #[arg(long, value_parser = crate::common::count_usize)]
+    pub pixel_samples: Option<usize>,
+    /// `exact` shadow rays (default) or the paper's `dsm` (deep shadow map) in single
+    /// scattering. Grid methods only.
+    #[arg(long, value_enum)]
+    pub shadows: Option<ShadowsArg>,
     /// SOR factor of CDA/FLD (the method parameter `omega`; default 1.8).
     #[arg(long)]
     pub omega: Option<f64>,
@@ -99,12 +109,56 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     pub param: Vec<String>,
     /// Stop the multiple-scattering solve at this tolerance (one meaning for every method,
-    /// `solvers::method::Tolerance`; for CDA/FLD the normalised residual R̄/j̄, the paper's 10⁻⁴).
-    #[arg(long, default_value_t = 1e-4)]
-    pub tolerance: f64,
-    /// Step cap of the multiple-scattering solve (a solve that hits it is reported in plan.json).
-    #[arg(long, default_value_t = 20_000)]
-    pub max_iterations: usize,
+    /// `solvers::method::Tolerance`; for CDA/FLD the normalised residual R̄/j̄, the paper's
+    /// 10⁻⁴, the default; 0 runs exactly --max-iterations steps). Grid methods only.
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Step cap of the multiple-scattering solve (default 20000; a solve that hits it is
+    /// reported in plan.json). Grid methods only.
+    #[arg(long, value_parser = crate::common::count_usize)]
+    pub max_iterations: Option<usize>,
+}
+
+/// The finest raymarch sub-step `--step` accepts, in voxels.
+pub const MIN_STEP: f64 = 1e-3;
+
+/// The most stratified raymarch rays per pixel and axis `--pixel-samples` accepts.
+pub const MAX_PIXEL_SAMPLES: usize = 64;
+
+/// The voxels every axis of the diffusion grid keeps at least (or all it has) under
+/// `--downsample`.
+pub const MIN_SOLVE_AXIS: usize = 4;
+
+impl Args {
+    /// The grid-method flags that were given, by name (the path tracer refuses them).
+    fn grid_flags(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        for (given, name) in [
+            (self.downsample.is_some(), "--downsample"),
+            (self.precision.is_some(), "--precision"),
+            (self.step.is_some(), "--step"),
+            (self.pixel_samples.is_some(), "--pixel-samples"),
+            (self.shadows.is_some(), "--shadows"),
+            (self.omega.is_some(), "--omega"),
+            (!self.param.is_empty(), "--param"),
+            (self.tolerance.is_some(), "--tolerance"),
+            (self.max_iterations.is_some(), "--max-iterations"),
+        ] {
+            if given {
+                v.push(name);
+            }
+        }
+        v
+    }
+}
+
+/// The largest `--downsample` that keeps [`MIN_SOLVE_AXIS`] voxels (or all there are) on
+/// every axis of a grid of `n` voxels.
+pub fn max_downsample(n: [usize; 3]) -> usize {
+    (1..=n.iter().copied().max().unwrap_or(1).max(1))
+        .take_while(|&d| n.iter().all(|&k| k.div_ceil(d) >= k.min(MIN_SOLVE_AXIS)))
+        .last()
+        .unwrap_or(1)
 }
 
 /// One row of `passes.csv`.
@@ -144,14 +198,103 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
     if quick {
         cap_resolution(&mut file, 24);
     }
+    let pt = args
+        .method
+        .trim()
+        .eq_ignore_ascii_case(crate::methods::PATH_TRACER);
     let mut channels = file.channels();
     let Some(camera) = channels[0].camera else {
         bail!("{}: the scene has no [camera]", args.scene.display());
     };
+    if pt {
+        let given = args.grid_flags();
+        if !given.is_empty() {
+            bail!(
+                "{} only appl{} to the grid methods; the path tracer (--method pt) takes \
+                 --spp, --seed and the scene's [sampler]",
+                given.join(", "),
+                if given.len() == 1 { "ies" } else { "y" }
+            );
+        }
+        if args.backend.backend != crate::common::BackendChoice::Cpu {
+            bail!(
+                "--backend {}: the path tracer runs on the CPU only (in f64); --backend \
+                 selects where the grid methods' multiple-scattering solve runs",
+                args.backend.backend
+            );
+        }
+    } else {
+        for (given, flag) in [
+            (args.spp.is_some(), "--spp"),
+            (args.seed.is_some(), "--seed"),
+        ] {
+            if given {
+                eprintln!(
+                    "warning: {flag} applies to the path tracer (--method pt) only; the grid \
+                     method {} ignores it",
+                    args.method
+                );
+            }
+        }
+        if args.backend.backend == crate::common::BackendChoice::Gpu
+            && args.precision == Some(PrecisionArg::F64)
+        {
+            bail!("--precision f64 with --backend gpu: the GPU solves in f32 only");
+        }
+        if args.backend.backend == crate::common::BackendChoice::Both {
+            bail!("--backend both is not supported by render; pick cpu or gpu");
+        }
+    }
+    let mut params = Params::parse(args.param.iter().map(String::as_str)).context("--param")?;
+    if let Some(w) = args.omega {
+        params = params.with("omega", w);
+    }
+    let renderer = Renderer::parse_with(&args.method, &params)
+        .with_context(|| format!("--method `{}`", args.method))?;
+    let downsample = args.downsample.unwrap_or(4);
+    let step = args.step.unwrap_or(0.5);
+    let pixel_samples = args.pixel_samples.unwrap_or(1);
+    let tolerance = args.tolerance.unwrap_or(1e-4);
+    let max_iterations = args.max_iterations.unwrap_or(20_000);
+    let precision_arg = args.precision.unwrap_or(PrecisionArg::F64);
+    let shadows_arg = args.shadows.unwrap_or(ShadowsArg::Exact);
+    if !(MIN_STEP..=1.0).contains(&step) {
+        bail!(
+            "--step {}: the raymarch sub-step must be in [{MIN_STEP}, 1] voxels",
+            crate::common::num(step)
+        );
+    }
+    if pixel_samples > MAX_PIXEL_SAMPLES {
+        bail!(
+            "--pixel-samples {pixel_samples}: at most {MAX_PIXEL_SAMPLES} stratified rays per \
+             pixel and axis ({} rays per pixel)",
+            MAX_PIXEL_SAMPLES * MAX_PIXEL_SAMPLES
+        );
+    }
+    if !(tolerance.is_finite() && (0.0..1.0).contains(&tolerance)) {
+        bail!("--tolerance {tolerance}: must be in [0, 1) (0 runs exactly --max-iterations steps)");
+    }
+    let n = channels[0].medium.grid.n;
+    if !pt {
+        let most = max_downsample(n);
+        if downsample > most {
+            let [nx, ny, nz] = n;
+            bail!(
+                "--downsample {downsample} leaves a {}×{}×{} diffusion grid of the {nx}×{ny}×{nz} \
+                 scene grid; at most --downsample {most} keeps {MIN_SOLVE_AXIS} voxels per axis",
+                nx.div_ceil(downsample),
+                ny.div_ceil(downsample),
+                nz.div_ceil(downsample)
+            );
+        }
+        if tolerance == 0.0 {
+            eprintln!("note: --tolerance 0 runs exactly --max-iterations {max_iterations} steps");
+        }
+    }
     {
         // The grid solver's state on the (downsampled) grid (colour channels solve in turn).
-        let [nx, ny, nz] = channels[0].medium.grid.n;
-        let d = args.downsample.max(1);
+        let [nx, ny, nz] = n;
+        let d = downsample.max(1);
         let voxels = [nx, ny, nz].map(|k| k.div_ceil(d));
         let bytes = solvers::budget::bytes(&voxels, solvers::budget::SOLVER_BYTES_PER_VOXEL);
         solvers::budget::check(
@@ -162,35 +305,25 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             bytes,
         )?;
     }
-    let shadows = match args.shadows {
+    let shadows = match shadows_arg {
         ShadowsArg::Exact => Shadows::Exact,
         ShadowsArg::Dsm => Shadows::DeepShadowMap,
     };
-    let mut params = Params::parse(args.param.iter().map(String::as_str)).context("--param")?;
-    if let Some(w) = args.omega {
-        params = params.with("omega", w);
-    }
-    let renderer = Renderer::parse_with(&args.method, &params)
-        .with_context(|| format!("--method `{}`", args.method))?;
-    let precision: Precision = args.precision.precision();
+    let precision: Precision = precision_arg.precision();
     let mut config = PipelineConfig {
-        downsample: args.downsample,
-        step: args.step,
-        pixel_samples: args.pixel_samples,
+        downsample,
+        step,
+        pixel_samples,
         shadows,
         tolerance: Tolerance {
-            rel: args.tolerance,
-            max_steps: args.max_iterations,
+            rel: tolerance,
+            max_steps: max_iterations,
         },
         ..PipelineConfig::default()
     };
-    let pt = match &renderer {
-        Renderer::PathTracer => true,
-        Renderer::Pipeline(m) => {
-            config.method = m.clone();
-            false
-        }
-    };
+    if let Renderer::Pipeline(m) = &renderer {
+        config.method = m.clone();
+    }
     let write_image = file.outputs.contains(&OutputKind::Image);
     let write_fluence = file.outputs.contains(&OutputKind::Fluence);
     if pt && write_fluence {
@@ -204,16 +337,72 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         .spp
         .unwrap_or(channels[0].sampler.spp)
         .min(if quick { 16 } else { u32::MAX });
-    let mut out = Output::new(
-        "render",
-        &args.common,
-        serde_json::json!({
-            "scene": args.scene.display().to_string(), "method": args.method,
-            "backend": args.backend.backend, "downsample": args.downsample, "spp": spp,
-            "precision": args.precision.name(), "step": args.step, "pixel_samples": args.pixel_samples,
-            "shadows": value_names(&[args.shadows]), "omega": args.omega, "quick": quick,
-        }),
-    )?;
+    let seed = args.seed.unwrap_or(channels[0].sampler.seed);
+    if pt && spp < reference::pathtracer::MIN_BATCHES {
+        bail!(
+            "{} = {spp}: the path tracer needs at least {} samples per pixel (one per batch of \
+             its per-pixel standard errors)",
+            if args.spp.is_some() {
+                "--spp"
+            } else {
+                "the scene's [sampler] spp"
+            },
+            reference::pathtracer::MIN_BATCHES
+        );
+    }
+    let pixels = (camera.resolution[0] * camera.resolution[1]) as f64;
+    let mut work = crate::cost::Estimate::new();
+    let nch = channels.len() as f64;
+    if pt {
+        let events = crate::cost::path_events(&channels[0].medium);
+        work.add(
+            format!(
+                "path tracing, {spp} spp × {pixels} pixels × {events:.3e} events × {nch} channels"
+            ),
+            spp as f64 * pixels * events * nch,
+        );
+    } else {
+        let axes = n.map(|k| k.div_ceil(downsample) + 2);
+        let voxels: f64 = axes.iter().map(|&k| k as f64).product();
+        let steps = crate::cost::solve_steps(
+            axes.iter().copied().max().unwrap_or(1),
+            tolerance,
+            max_iterations,
+        );
+        work.add(
+            format!(
+                "the multiple-scattering solve, {steps:.0} steps (--max-iterations \
+                 {max_iterations}) × {voxels} voxels × {nch} channels"
+            ),
+            steps * voxels * nch,
+        );
+        let rays = (pixel_samples * pixel_samples) as f64;
+        work.add(
+            format!("the raymarch, {pixels} pixels × {rays} rays, --step {step}"),
+            crate::cost::raymarch_samples(
+                pixels,
+                rays,
+                crate::cost::diagonal_voxels(n),
+                step,
+                matches!(shadows, Shadows::Exact),
+            ) * nch,
+        );
+    }
+    let (_, rendered) = pipeline::effects_of(&channels, &file.effects, &config)?;
+    let warnings = solvers::scene::warnings::degenerate(&channels[0], Some(&rendered));
+    for w in &warnings {
+        eprintln!("warning: {}: {w}", args.scene.display());
+    }
+    let mut out = Output::for_run("render", &args.common);
+    out.work(&work)?;
+    out.record("warnings", serde_json::json!(warnings));
+    out.start(serde_json::json!({
+        "scene": args.scene.display().to_string(), "method": args.method,
+        "backend": args.backend.backend, "downsample": downsample, "spp": spp, "seed": seed,
+        "precision": precision_arg.name(), "step": step, "pixel_samples": pixel_samples,
+        "shadows": value_names(&[shadows_arg]), "omega": args.omega, "quick": quick,
+        "tolerance": tolerance, "max_iterations": max_iterations,
+    }))?;
     let [w, h] = camera.resolution;
     // φ of every channel's multiple-scattering solve as one `.vol` grid (grid methods only).
     let mut fluence: Option<VolGrid> = None;
@@ -237,14 +426,18 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         let mut renders = Vec::new();
         for (c, scene) in channels.iter_mut().enumerate() {
             scene.sampler.spp = spp;
+            scene.sampler.seed = seed;
             let settings = RenderSettings {
                 spp,
-                seed: scene.sampler.seed,
-                batches: 16.min(spp).max(reference::pathtracer::MIN_BATCHES),
+                seed,
+                batches: reference::pathtracer::MIN_BATCHES,
                 contributions: Contributions::all(),
             };
+            let sp = out.spinner("render");
+            sp.set_message(format!("path tracing channel {c}, {spp} spp"));
             let comp = render_components(scene, &effects, &settings)
                 .with_context(|| format!("path tracing channel {c}"))?;
+            sp.finish_and_clear();
             for (component, contributions, seconds) in &comp.renders {
                 let name = format!(
                     "pt_{}",
@@ -292,7 +485,7 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             );
         }
         if args.explain {
-            println!("method: {}, downsample {}", config.method, args.downsample);
+            println!("method: {}, downsample {downsample}", config.method);
             print!("{}", plan.explain());
         }
         let backends = args.backend.open()?;
@@ -300,12 +493,16 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         let Some(backend) = list.first() else {
             bail!("--backend selects no backend");
         };
-        if list.len() > 1 {
-            bail!("--backend both is not supported by render; pick cpu or gpu");
-        }
         out.record("backends", backends.meta());
+        let sp = out.spinner("render");
+        sp.set_message(format!(
+            "{} on {backend}, {} channel(s)",
+            config.method,
+            channels.len()
+        ));
         let r = pipeline::render_channels(&channels, &file.effects, &config, backend)
             .context("rendering with the pipeline")?;
+        sp.finish_and_clear();
         if write_fluence {
             fluence = Some(fluence_grid(&r.diffusion)?);
         }
@@ -338,7 +535,7 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             .collect();
         let json = serde_json::json!({
             "method": config.method.name(), "backend": backend.to_string(),
-            "downsample": args.downsample, "plan": r.plan,
+            "downsample": downsample, "plan": r.plan,
             "passes_run": r.passes_run, "diffusion": r.diffusion,
         });
         (

@@ -48,7 +48,7 @@ use solvers::scene::{Camera, Light, Phase, Projection, Scene, VolError, VolGrid}
 use solvers::vec3::{cross, normalize, sub};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 use thiserror::Error;
 
 /// The Python script that renders an exported job (shipped inside the binary).
@@ -85,6 +85,15 @@ pub enum MitsubaError {
         status: String,
         /// The last lines of its standard error.
         stderr_tail: String,
+    },
+    /// The render script ran past its time limit and was killed.
+    #[error(
+        "the Mitsuba render script ran past its time limit of {seconds} s and was killed \
+         (raise it with --mitsuba-timeout or {TIMEOUT_ENV}, or lower the samples per pixel)"
+    )]
+    TimedOut {
+        /// The limit, in seconds.
+        seconds: f64,
     },
     /// The script's output is missing or inconsistent.
     #[error("unexpected output from the Mitsuba script: {0}")]
@@ -142,6 +151,11 @@ impl MitsubaConfig {
     /// Checks that the interpreter imports `mitsuba` and has the variant; returns Mitsuba's
     /// version.
     pub fn probe(&self) -> Result<String, MitsubaError> {
+        self.probe_within(PROBE_TIMEOUT)
+    }
+
+    /// [`MitsubaConfig::probe`], killing the interpreter after `limit`.
+    pub fn probe_within(&self, limit: Duration) -> Result<String, MitsubaError> {
         let not_installed = |reason: String| MitsubaError::NotInstalled {
             python: self.python.clone(),
             reason,
@@ -150,10 +164,14 @@ impl MitsubaConfig {
             return Err(not_installed("no such interpreter".into()));
         }
         let code = "import sys, mitsuba as mi\nv = sys.argv[1]\nprint(mi.__version__)\nprint(v in mi.variants())";
-        let out = Command::new(&self.python)
-            .args(["-c", code, &self.variant])
-            .output()
-            .map_err(|e| not_installed(format!("cannot run it: {e}")))?;
+        let dir = WorkDir::new(None)?;
+        let out = run_limited(
+            Command::new(&self.python).args(["-c", code, &self.variant]),
+            &dir.path,
+            "probe",
+            limit,
+        )
+        .map_err(|e| not_installed(format!("cannot run it: {e}")))??;
         if !out.status.success() {
             return Err(not_installed(format!(
                 "`import mitsuba` failed: {}",
@@ -188,6 +206,62 @@ pub struct MitsubaSettings {
     pub max_depth: Option<u32>,
     /// Keep the exported files here instead of a temporary directory that is removed.
     pub keep_dir: Option<PathBuf>,
+    /// Kill the render script after this long (`None`: [`default_timeout`]).
+    pub timeout: Option<Duration>,
+}
+
+/// The environment variable with the default time limit of a Mitsuba child, in seconds.
+pub const TIMEOUT_ENV: &str = "SCATTERBENCH_MITSUBA_TIMEOUT";
+
+/// The time limit of a Mitsuba render script when the settings give none:
+/// `SCATTERBENCH_MITSUBA_TIMEOUT` seconds, else one hour.
+pub fn default_timeout() -> Duration {
+    std::env::var(TIMEOUT_ENV)
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .map_or(Duration::from_secs(3600), Duration::from_secs_f64)
+}
+
+/// The time limit of the import probe (`import mitsuba` takes a few seconds).
+const PROBE_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// Runs `cmd` with its standard output and error captured in files under `dir` (no pipe can
+/// fill) and kills it after `limit`.
+fn run_limited(
+    cmd: &mut Command,
+    dir: &Path,
+    tag: &str,
+    limit: Duration,
+) -> Result<Result<std::process::Output, MitsubaError>, std::io::Error> {
+    let out_path = dir.join(format!("{tag}.stdout"));
+    let err_path = dir.join(format!("{tag}.stderr"));
+    let mut child = cmd
+        .stdin(std::process::Stdio::null())
+        .stdout(std::fs::File::create(&out_path)?)
+        .stderr(std::fs::File::create(&err_path)?)
+        .spawn()?;
+    let start = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait()? {
+            break status;
+        }
+        if start.elapsed() >= limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Ok(Err(MitsubaError::TimedOut {
+                seconds: limit.as_secs_f64(),
+            }));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let stdout = std::fs::read(&out_path).unwrap_or_default();
+    let stderr = std::fs::read(&err_path).unwrap_or_default();
+    Ok(Ok(std::process::Output {
+        status,
+        stdout,
+        stderr,
+    }))
 }
 
 /// A Mitsuba render: per-pixel mean and standard error over K seeds, with provenance.
@@ -504,7 +578,8 @@ pub fn render(
     if settings.spp == 0 {
         return Err(MitsubaError::Settings("spp must be at least 1".into()));
     }
-    config.probe()?;
+    let limit = settings.timeout.unwrap_or_else(default_timeout);
+    config.probe_within(limit.min(PROBE_TIMEOUT))?;
     let work = WorkDir::new(settings.keep_dir.as_deref())?;
     let dir = &work.path;
     let scene_dict = export_scene(
@@ -531,14 +606,18 @@ pub fn render(
     std::fs::write(&job_path, text).map_err(io(&job_path))?;
     let script_path = dir.join("render_mitsuba.py");
     std::fs::write(&script_path, SCRIPT).map_err(io(&script_path))?;
-    let out = Command::new(&config.python)
-        .arg(&script_path)
-        .arg(&job_path)
-        .output()
-        .map_err(|e| MitsubaError::NotInstalled {
-            python: config.python.clone(),
-            reason: format!("cannot run it: {e}"),
-        })?;
+    let out = run_limited(
+        Command::new(&config.python)
+            .arg(&script_path)
+            .arg(&job_path),
+        dir,
+        "render",
+        limit,
+    )
+    .map_err(|e| MitsubaError::NotInstalled {
+        python: config.python.clone(),
+        reason: format!("cannot run it: {e}"),
+    })??;
     if !out.status.success() {
         return Err(MitsubaError::ScriptFailed {
             status: out.status.to_string(),

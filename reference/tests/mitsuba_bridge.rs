@@ -71,6 +71,7 @@ fn absorbing_columns_match_beer_lambert_pixel_by_pixel() {
         seed: 5,
         max_depth: None,
         keep_dir: None,
+        timeout: None,
     };
     let r = render(&scene, &settings, &cfg).unwrap();
     assert_eq!(r.variant, "scalar_rgb");
@@ -110,4 +111,29 @@ fn absorbing_columns_match_beer_lambert_pixel_by_pixel() {
         let c = compare(&wrong, &r.image, 0.01).unwrap();
         assert_eq!(c.fraction_passing, 0.0);
     }
+}
+
+/// A Mitsuba child that never returns is killed at its time limit: an interpreter that
+/// sleeps (a shell script standing in for Python) gives `TimedOut` after the limit, not a
+/// hang. Needs no Mitsuba.
+#[test]
+fn a_child_that_never_returns_is_killed_at_its_limit() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = std::env::temp_dir().join(format!("scatterbench-hang-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fake = dir.join("python");
+    std::fs::write(&fake, "#!/bin/sh\nexec sleep 600\n").unwrap();
+    std::fs::set_permissions(&fake, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let cfg = MitsubaConfig {
+        python: fake,
+        variant: "scalar_rgb".into(),
+    };
+    let t0 = std::time::Instant::now();
+    let e = cfg
+        .probe_within(std::time::Duration::from_millis(500))
+        .unwrap_err();
+    let took = t0.elapsed().as_secs_f64();
+    assert!(matches!(e, MitsubaError::TimedOut { .. }), "{e}");
+    assert!((0.5..5.0).contains(&took), "killed after {took} s");
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -20,6 +20,7 @@ pub mod file;
 pub mod generators;
 pub mod vdb;
 pub mod vol;
+pub mod warnings;
 
 pub use effects::{Effect, EffectPattern, EffectSelection, Effects, EffectsError};
 pub use file::{OutputKind, SceneFile, SceneFileError, load_scene};

@@ -1,0 +1,279 @@
+//! Cost estimates checked before any work: a run whose estimate exceeds the work budget is
+//! refused unless `--force` is given (issue 13, item 5).
+//!
+//! An estimate counts *operations*, one unit each for
+//! * a voxel update of a grid solver (iterations × voxels, with the step cap as the bound of
+//!   a solve stopped by a tolerance),
+//! * an event of a Monte Carlo path (a real or null collision, or a ratio-tracking step of a
+//!   shadow ray): paths × the expected events per path ([`path_events`], [`slab_events`],
+//!   [`infinite_events`]),
+//! * a raymarch sample (pixels × rays per pixel × samples per ray, times the samples of a
+//!   shadow ray per sample with exact shadows).
+//!
+//! The estimates are upper-bound flavoured: they use the step cap, not the step a tolerance
+//! stops at, and the mean-chord bound on path length. They exist to catch a mistake (a step
+//! of 10⁻⁹ voxels, an albedo of 0.9999999 in an infinite medium, 10¹⁰ rays per pixel) before
+//! it runs for days, not to predict run times.
+//!
+//! **The budget** is [`BUDGET_HOURS`] hours of wall time on this machine's cores at the
+//! nominal rate [`NOMINAL_RATE`] operations per second per core, or
+//! `SCATTERBENCH_WORK_BUDGET` operations when set. *Measured* (2-core Intel Xeon, this
+//! revision's `pt_point_source --albedo 0.99 --g 0 --paths 400000`): 3.65·10⁵ paths/s × 100
+//! collisions per path = 3.65·10⁷ collisions/s on 2 cores, 1.8·10⁷ per core. Every run
+//! `figures` makes (full and quick) stays below 1 % of the 2-core budget; the test
+//! `tests/bounded.rs` refuses each binary's absurd run and runs it with `--force` to its
+//! first step.
+
+use anyhow::{Result, bail};
+
+/// The environment variable that sets the budget in operations (overrides [`BUDGET_HOURS`]).
+pub const WORK_ENV: &str = "SCATTERBENCH_WORK_BUDGET";
+
+/// Operations per second per core of the time estimates (measured; see the module docs).
+pub const NOMINAL_RATE: f64 = 1.8e7;
+
+/// Wall hours on this machine's cores the default budget allows.
+pub const BUDGET_HOURS: f64 = 4.0;
+
+/// The cost of a run: named parts, in operations.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Estimate {
+    parts: Vec<(String, f64)>,
+}
+
+impl Estimate {
+    /// An empty estimate.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds `ops` operations for `what` (negative or NaN counts as infinite: a model that
+    /// cannot bound the work must not pass).
+    pub fn add(&mut self, what: impl Into<String>, ops: f64) -> &mut Self {
+        let ops = if ops.is_nan() || ops < 0.0 {
+            f64::INFINITY
+        } else {
+            ops
+        };
+        self.parts.push((what.into(), ops));
+        self
+    }
+
+    /// The total in operations.
+    pub fn total(&self) -> f64 {
+        self.parts.iter().map(|(_, v)| v).sum()
+    }
+
+    /// The largest part.
+    fn largest(&self) -> Option<&(String, f64)> {
+        self.parts.iter().max_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// What `meta.json` records: the total, the parts, and the budget.
+    pub fn meta(&self) -> serde_json::Value {
+        let (budget, origin) = budget();
+        serde_json::json!({
+            "operations": finite_or_null(self.total()),
+            "parts": self.parts.iter().map(|(k, v)| serde_json::json!({"what": k, "operations": finite_or_null(*v)})).collect::<Vec<_>>(),
+            "budget_operations": budget,
+            "budget_origin": origin,
+            "nominal_rate_per_core": NOMINAL_RATE,
+        })
+    }
+
+    /// Refuses the run when its estimate exceeds the budget, unless `force`; the message
+    /// carries the estimate, its largest part and the budget.
+    pub fn check(&self, force: bool) -> Result<()> {
+        let total = self.total();
+        let (budget, origin) = budget();
+        if total <= budget || force {
+            return Ok(());
+        }
+        let largest = self
+            .largest()
+            .map(|(w, v)| format!("; the largest part is {w}: {}", ops(*v)))
+            .unwrap_or_default();
+        bail!(
+            "this run is estimated at {} ({}){largest}, more than the work budget of {} \
+             ({origin}); pass --force to run it anyway, or set {WORK_ENV}",
+            ops(total),
+            duration(total),
+            ops(budget)
+        )
+    }
+}
+
+fn finite_or_null(v: f64) -> serde_json::Value {
+    if v.is_finite() {
+        serde_json::json!(v)
+    } else {
+        serde_json::Value::Null
+    }
+}
+
+/// Logical cores (at least 1).
+fn cores() -> f64 {
+    std::thread::available_parallelism().map_or(1, |n| n.get()) as f64
+}
+
+/// The budget in operations and where it came from.
+pub fn budget() -> (f64, String) {
+    if let Some(b) = std::env::var(WORK_ENV)
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|b| *b >= 0.0)
+    {
+        return (b, format!("set by {WORK_ENV}"));
+    }
+    let c = cores();
+    (
+        BUDGET_HOURS * 3600.0 * NOMINAL_RATE * c,
+        format!(
+            "{BUDGET_HOURS} h on {c} cores at a nominal {NOMINAL_RATE:e} operations/s per core"
+        ),
+    )
+}
+
+/// `v` operations, compactly (`3.2e12 operations`, or `unbounded`).
+pub fn ops(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.2e} operations")
+    } else {
+        "unbounded work".to_string()
+    }
+}
+
+/// The wall time of `v` operations on this machine at the nominal rate, in words.
+pub fn duration(v: f64) -> String {
+    if !v.is_finite() {
+        return "it would never finish".to_string();
+    }
+    let s = v / (NOMINAL_RATE * cores());
+    let (x, unit) = if s < 120.0 {
+        (s, "s")
+    } else if s < 7200.0 {
+        (s / 60.0, "min")
+    } else if s < 48.0 * 3600.0 {
+        (s / 3600.0, "h")
+    } else if s < 3.0 * 365.25 * 86400.0 {
+        (s / 86400.0, "days")
+    } else {
+        (s / (365.25 * 86400.0), "years")
+    };
+    format!("about {x:.1} {unit} here at the nominal rate")
+}
+
+/// Expected scattering events of a path before absorption, at single-scattering albedo
+/// `albedo` (analog absorption): `albedo / (1 − albedo)`, infinite at 1.
+fn scatterings_before_absorption(albedo: f64) -> f64 {
+    if albedo >= 1.0 {
+        f64::INFINITY
+    } else {
+        albedo.max(0.0) / (1.0 - albedo)
+    }
+}
+
+/// Expected events per path in an infinite medium of albedo `albedo` (every path ends by
+/// absorption): `1 / (1 − albedo)`.
+pub fn infinite_events(albedo: f64) -> f64 {
+    1.0 + scatterings_before_absorption(albedo)
+}
+
+/// Expected events per path in a slab of optical thickness `tau` (`inf`: half-space) and
+/// albedo `albedo`: the fewer of the collisions before absorption and the mean-chord bound
+/// `2τ + 1` (the mean optical path of light entering a body is 4V/S, whatever the
+/// scattering, which is 2τ for a slab). A conservative half-space is unbounded.
+pub fn slab_events(tau: f64, albedo: f64) -> f64 {
+    1.0 + scatterings_before_absorption(albedo).min(2.0 * tau + 1.0)
+}
+
+/// Expected events per path (with one shadow ray per scattering) in `medium`: scatterings
+/// `k` = the fewer of the collisions before absorption at the σt-weighted albedo and the
+/// mean-chord bound σ̄t·4V/S + 1; each of the `k + 1` segments and shadow rays crosses at
+/// most the box's chord at the majorant, σmax·4V/S + 1 events.
+pub fn path_events(medium: &solvers::Medium<f64>) -> f64 {
+    let g = &medium.grid;
+    let ext = g.n.map(|k| k as f64 * g.dl);
+    let volume = ext[0] * ext[1] * ext[2];
+    let surface = 2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[0] * ext[2]);
+    let chord = if surface > 0.0 {
+        4.0 * volume / surface
+    } else {
+        0.0
+    };
+    let (mut st, mut ss, mut max) = (0.0f64, 0.0f64, 0.0f64);
+    for (t, a) in medium.sigma_t.iter().zip(&medium.albedo) {
+        st += t;
+        ss += t * a;
+        max = max.max(*t);
+    }
+    let voxels = medium.sigma_t.len().max(1) as f64;
+    let mean = st / voxels;
+    let albedo = if st > 0.0 { ss / st } else { 0.0 };
+    let k = scatterings_before_absorption(albedo).min(mean * chord + 1.0);
+    (k + 1.0) * 2.0 * (max * chord + 1.0)
+}
+
+/// Steps of a solve on a grid of at most `n` voxels per axis stopped at tolerance `rel`
+/// or the cap `max_steps`: the cap when `rel` is 0 (a fixed-step run), else the fewer of
+/// the cap and `n·ln(1/rel) + 10`. *Measured* (`results/point_source`, n = 127,
+/// R̄/j̄ < 10⁻⁶, SOR at the Poisson-optimal ω): CDA 274–290 and FLD 472–975 iterations,
+/// at most 0.56·n·ln(1/rel), so the model leaves a 1.8× margin. A hard case that runs to
+/// the cap is still bounded by the cap.
+pub fn solve_steps(n: usize, rel: f64, max_steps: usize) -> f64 {
+    let cap = max_steps as f64;
+    if rel > 0.0 && rel < 1.0 {
+        cap.min(n as f64 * (1.0 / rel).ln() + 10.0)
+    } else {
+        cap
+    }
+}
+
+/// Raymarch samples of an image: pixels × rays per pixel × samples per ray (the longest
+/// chord of the box over the step), times the samples of a shadow ray per sample with exact
+/// shadows.
+pub fn raymarch_samples(
+    pixels: f64,
+    rays_per_pixel: f64,
+    chord_voxels: f64,
+    step: f64,
+    shadow_rays: bool,
+) -> f64 {
+    let per_ray = chord_voxels / step + 1.0;
+    let per_sample = if shadow_rays { per_ray } else { 1.0 };
+    pixels * rays_per_pixel * per_ray * per_sample
+}
+
+/// The longest chord of a grid of `n` voxels per axis, in voxels.
+pub fn diagonal_voxels(n: [usize; 3]) -> f64 {
+    n.iter().map(|&k| (k as f64).powi(2)).sum::<f64>().sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn absurd_runs_are_refused_and_force_lets_them_through() {
+        let mut e = Estimate::new();
+        e.add("paths", 4e6 * infinite_events(0.999_999_9));
+        let err = e.check(false).unwrap_err().to_string();
+        assert!(err.contains("--force") && err.contains("e13"), "{err}");
+        assert!(e.check(true).is_ok());
+        let mut small = Estimate::new();
+        small.add("paths", 4e6 * infinite_events(0.99));
+        assert!(small.check(false).is_ok());
+    }
+
+    #[test]
+    fn models_are_monotone_and_unbounded_where_physics_is() {
+        assert!(slab_events(f64::INFINITY, 1.0).is_infinite());
+        assert!((slab_events(1e6, 1.0) - 2e6 - 2.0).abs() < 1.0);
+        assert!(slab_events(10.0, 0.5) < slab_events(10.0, 0.9));
+        assert!((infinite_events(0.5) - 2.0).abs() < 1e-12);
+        let mut e = Estimate::new();
+        e.add("nan", f64::NAN);
+        assert!(e.total().is_infinite());
+        assert!(e.check(false).is_err());
+    }
+}
