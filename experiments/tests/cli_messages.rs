@@ -50,6 +50,7 @@ fn run_in(bin: &str, args: &[&str], cwd: &Path, env: &[(&str, &str)], unset: &[&
     cmd.args(args)
         .current_dir(cwd)
         .env_remove("SCATTERBENCH_MEMORY_BUDGET")
+        .env_remove("SCATTERBENCH_WORK_BUDGET")
         .env_remove(experiments::common::TEST_EXIT_ENV)
         .env("RUST_BACKTRACE", "0")
         .env("RUST_LIB_BACKTRACE", "0")
@@ -368,7 +369,7 @@ fn opening_the_gpu_enumerates_adapters_once() {
 fn light_messages_use_an_before_a_vowel() {
     let dir = scratch("article");
     let bin = env!("CARGO_BIN_EXE_render");
-    let medium = "format = 1\n[medium]\ngenerator = \"homogeneous\"\nparams = { n = 6, sigma_t = 2.0, albedo = 0.5 }\n";
+    let medium = "format = 1\n[medium]\ngenerator = \"homogeneous\"\nparams = { n = 16, sigma_t = 2.0, albedo = 0.5 }\n";
     let camera = "[camera]\neye = [0.5, -2.0, 0.5]\ntarget = [0.5, 0.5, 0.5]\nup = [0.0, 0.0, 1.0]\nprojection = \"orthographic\"\nwidth = 1.0\nresolution = [8, 8]\n";
     let env_light = "[[light]]\ntype = \"environment\"\nradiance = 1.0\n";
     let grid = write(&dir, "env.toml", &format!("{medium}{env_light}{camera}"));
