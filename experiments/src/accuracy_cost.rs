@@ -97,7 +97,7 @@ pub struct Args {
     #[arg(long)]
     pub scenes: Option<String>,
     /// Samples per pixel of the reference (default 4096; 256 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_u32)]
     pub reference_spp: Option<u32>,
     /// Samples per pixel of the path tracer's own points, each ≥ 16 (default
     /// 16,64,256,1024,2048; 16,32 with --quick).
@@ -497,15 +497,48 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         "methods": methods.iter().map(|m| m.name.clone()).collect::<Vec<_>>(),
         "targets": TARGETS,
     });
+    let mut prepared = scenes
+        .iter()
+        .map(|p| load(p, coarsen, resolution))
+        .collect::<Result<Vec<_>>>()?;
+    let mut work = crate::cost::Estimate::new();
+    for scene in &prepared {
+        work.add(
+            format!("{}: the reference, {ref_spp} spp", scene.name),
+            crate::cost::pt_render(&scene.channels, &scene.effects, ref_spp),
+        );
+        for m in &methods {
+            for st in m.settings(quick, &spp) {
+                let backends_run = backends
+                    .list(st.precision)
+                    .iter()
+                    .filter(|b| m.renderer.supports(b, st.precision))
+                    .count() as f64;
+                let one = match &m.renderer {
+                    Renderer::PathTracer => {
+                        crate::cost::pt_render(&scene.channels, &scene.effects, st.spp)
+                    }
+                    Renderer::Pipeline(r) => crate::cost::pipeline_render(
+                        &scene.channels,
+                        &grid_config(r, st.downsample, st.tolerance),
+                    ),
+                };
+                work.add(
+                    format!("{}: {} [{}]", scene.name, m.name, st.label),
+                    one * backends_run,
+                );
+            }
+        }
+    }
+    ctx.work(&work)?;
     ctx.start(params)?;
     let out = ctx;
     out.record("backends", backends.meta());
 
     let mut points = Vec::new();
     let mut refs = Vec::new();
-    for path in &scenes {
-        let mut scene = load(path, coarsen, resolution)?;
-        render_reference(&mut scene, ref_spp, args.seed)?;
+    for scene in &mut prepared {
+        render_reference(scene, ref_spp, args.seed)?;
         out.timing(format!("{}/reference", scene.name), scene.reference_seconds);
         let noise = scene.noise();
         refs.push(ReferenceRow {
@@ -530,13 +563,13 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         let bar = progress(jobs.len() as u64, &args.common, &scene.name);
         for (m, s, b) in &jobs {
             let job = Job {
-                scene: &scene,
+                scene,
                 setting: s,
                 backend: b,
                 seed: args.seed + 1000,
             };
             let r = m.run(&job)?;
-            let (error, debiased, single, multiple) = errors(&scene, &r.images);
+            let (error, debiased, single, multiple) = errors(scene, &r.images);
             points.push(Point {
                 scene: scene.name.clone(),
                 method: m.name.clone(),

@@ -41,7 +41,7 @@ pub struct Args {
     pub common: CommonArgs,
     /// Lattice size N (odd, so one site is at the centre, and large enough that the fit
     /// window has room: ⌊N/4⌋ > --r-min, i.e. N ≥ 21 for the default --r-min 4). Default 49.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::common::count_usize)]
     pub n: Option<usize>,
     /// Per-step extinctions σt. Default 0.05,0.1,0.2,0.35,0.5,0.75,1 (0.1,0.5,1 with --quick).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, allow_negative_numbers = true)]
@@ -62,7 +62,7 @@ pub struct Args {
     pub tolerance: f64,
     /// Step cap per case; at least ⌊N/4⌋, the steps the light needs to reach the outermost
     /// fit radius (it moves at most one site per axis per step).
-    #[arg(long, default_value_t = 40_000, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 40_000, allow_negative_numbers = true, value_parser = crate::common::count_usize)]
     pub max_steps: usize,
 }
 
@@ -190,6 +190,16 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<CaseRow>> {
             Compact(args.r_min)
         );
     }
+    let mut work = crate::cost::Estimate::new();
+    work.add(
+        format!(
+            "{} cases × --max-steps {} × {n}³ sites",
+            sts.len() * sas.len(),
+            args.max_steps
+        ),
+        (sts.len() * sas.len()) as f64 * args.max_steps as f64 * (n as f64).powi(3),
+    );
+    ctx.work(&work)?;
     let params = serde_json::json!({
         "n": n, "sigma_t": sts, "sigma_a": sas, "r_min": args.r_min, "r_max": r_max,
         "kn_max": args.kn_max, "tolerance": args.tolerance, "max_steps": args.max_steps,

@@ -68,7 +68,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>)]
     pub full_at: Option<Vec<f64>>,
     /// Samples per pixel of the reference (default 1024; 64 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_u32)]
     pub spp: Option<u32>,
     /// Solver tolerance (`solvers::method::Tolerance::rel`: R̄/j̄ for CDA/FLD; each method
     /// documents its mapping).
@@ -228,17 +228,46 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
         "full_at": full_at,
         "seed": args.seed,
     });
+    let mut prepared = scenes
+        .iter()
+        .map(|p| load(p, coarsen, resolution))
+        .collect::<Result<Vec<_>>>()?;
+    let mut work = crate::cost::Estimate::new();
+    let nb = backends.list(Precision::F32).len() as f64;
+    for scene in &prepared {
+        let reference = crate::cost::pt_render(&scene.channels, &scene.effects, spp);
+        work.add(
+            format!("{}: {} references of {spp} spp", scene.name, albedos.len()),
+            reference * albedos.len() as f64,
+        );
+        for m in &methods {
+            for &k in &factors {
+                let runs = if k == 1 {
+                    albedos.iter().filter(|a| full_at.contains(a)).count()
+                } else {
+                    albedos.len()
+                } as f64;
+                let one = crate::cost::pipeline_render(
+                    &scene.channels,
+                    &grid_config(m, k, args.tolerance),
+                );
+                work.add(
+                    format!("{}: {m} ds={k}, {runs} albedos", scene.name),
+                    one * runs * nb,
+                );
+            }
+        }
+    }
+    ctx.work(&work)?;
     ctx.start(params)?;
     let out = ctx;
     out.record("backends", backends.meta());
     let mut rows = Vec::new();
-    for path in &scenes {
-        let mut scene = load(path, coarsen, resolution)?;
+    for scene in &mut prepared {
         let bar = progress(albedos.len() as u64, &args.common, &scene.name);
         for &albedo in &albedos {
-            set_albedo(&mut scene, albedo);
-            render_reference(&mut scene, spp, args.seed)
-                .with_context(|| format!("albedo {albedo}"))?;
+            set_albedo(scene, albedo);
+            render_reference(scene, spp, args.seed).with_context(|| format!("albedo {albedo}"))?;
             out.timing(
                 format!("{}/a{albedo}/reference", scene.name),
                 scene.reference_seconds,
@@ -277,7 +306,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
                         )
                         .with_context(|| format!("{} α={albedo} {m} ds={k}", scene.name))?;
                         let seconds = t0.elapsed().as_secs_f64();
-                        let (error, _, error_single, error_multiple) = errors(&scene, &r.channels);
+                        let (error, _, error_single, error_multiple) = errors(scene, &r.channels);
                         rows.push(ErrorRow {
                             scene: scene.name.clone(),
                             albedo,
@@ -306,7 +335,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
                     }
                 }
             }
-            write_images(out, &scene, albedo, &ref_total, &renders)?;
+            write_images(out, scene, albedo, &ref_total, &renders)?;
             bar.inc(1);
         }
         bar.finish_and_clear();

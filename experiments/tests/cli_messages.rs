@@ -6,86 +6,19 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
+use common::spawn::{Outcome, scratch as fresh, spawn_with, workspace};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
-
-/// A child still running after this is killed and the test fails.
-const GUARD: Duration = Duration::from_secs(20);
-
-struct Run {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
-}
 
 /// A fresh directory for one test.
 fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("scatterbench-cli-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    fresh(&format!("cli-{tag}"))
 }
 
-/// Runs `bin args` in `cwd` with `env` set and `unset` removed; output goes to files (no
-/// pipe can fill), read back after the exit.
-fn run_in(bin: &str, args: &[&str], cwd: &Path, env: &[(&str, &str)], unset: &[&str]) -> Run {
-    let stamp = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .as_nanos();
-    let name = Path::new(bin).file_name().unwrap().to_string_lossy();
-    let (out_log, err_log) = (
-        cwd.join(format!(".stdout-{name}-{stamp}")),
-        cwd.join(format!(".stderr-{name}-{stamp}")),
-    );
-    let mut cmd = Command::new(bin);
-    cmd.args(args)
-        .current_dir(cwd)
-        .env_remove("SCATTERBENCH_MEMORY_BUDGET")
-        .env_remove("SCATTERBENCH_WORK_BUDGET")
-        .env_remove(experiments::common::TEST_EXIT_ENV)
-        .env("RUST_BACKTRACE", "0")
-        .env("RUST_LIB_BACKTRACE", "0")
-        .stdin(Stdio::null())
-        .stdout(std::fs::File::create(&out_log).unwrap())
-        .stderr(std::fs::File::create(&err_log).unwrap());
-    for k in unset {
-        cmd.env_remove(k);
-    }
-    for (k, v) in env {
-        cmd.env(k, v);
-    }
-    let t = Instant::now();
-    let mut child = cmd.spawn().unwrap();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if t.elapsed() > GUARD {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("{bin} {args:?} still running after {GUARD:?}");
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    let read = |p: &Path| {
-        let s = std::fs::read_to_string(p).unwrap_or_default();
-        let _ = std::fs::remove_file(p);
-        s
-    };
-    Run {
-        code: status.code(),
-        stdout: read(&out_log),
-        stderr: read(&err_log),
-    }
+/// Runs `bin args` in `cwd` with `env` set and `unset` removed.
+fn run_in(bin: &str, args: &[&str], cwd: &Path, env: &[(&str, &str)], unset: &[&str]) -> Outcome {
+    spawn_with(bin, args, env, unset, cwd)
 }
 
 /// Runs `bin` with `--no-progress --quick --out <dir>/out` and `args`, in `dir`, and
@@ -186,14 +119,19 @@ fn lbm_diffusion_limit_flags_are_validated_with_reasons() {
         &["--sigma-t", "-1"],
         &["--sigma-t: -1 is outside (0, 1]"],
     );
-    for steps in ["0", "11"] {
-        fails_with(
-            bin,
-            &dir,
-            &["--max-steps", steps],
-            &["--max-steps must be ≥ ⌊N/4⌋ = 12"],
-        );
-    }
+    fails_with(
+        bin,
+        &dir,
+        &["--max-steps", "11"],
+        &["--max-steps must be ≥ ⌊N/4⌋ = 12"],
+    );
+    // A count of 0 is refused by the flag parser, like every count flag.
+    fails_with(
+        bin,
+        &dir,
+        &["--max-steps", "0"],
+        &["--max-steps", "at least 1"],
+    );
     fails_with(
         bin,
         &dir,
