@@ -54,10 +54,17 @@ fn runs_over_the_work_budget_are_refused_with_their_estimate_and_force_runs_them
             env!("CARGO_BIN_EXE_pt_point_source"),
             vec!["--albedo", "0.9999999"],
         ),
-        // 64² pixels × (110 voxels / 0.001)² raymarch samples with exact shadow rays.
+        // 64² pixels × 64² rays × 110 voxels / 0.001 raymarch samples, with shadow rays.
         (
             env!("CARGO_BIN_EXE_render"),
-            vec!["--scene", &cloud, "--step", "0.001"],
+            vec![
+                "--scene",
+                &cloud,
+                "--step",
+                "0.001",
+                "--pixel-samples",
+                "64",
+            ],
         ),
         (
             env!("CARGO_BIN_EXE_render"),
