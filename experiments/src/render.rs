@@ -251,11 +251,12 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
     }
     let renderer = Renderer::parse_with(&args.method, &params)
         .with_context(|| format!("--method `{}`", args.method))?;
-    let downsample = args.downsample.unwrap_or(4);
-    let step = args.step.unwrap_or(0.5);
-    let pixel_samples = args.pixel_samples.unwrap_or(1);
-    let tolerance = args.tolerance.unwrap_or(1e-4);
-    let max_iterations = args.max_iterations.unwrap_or(20_000);
+    let defaults = PipelineConfig::default();
+    let downsample = args.downsample.unwrap_or(defaults.downsample);
+    let step = args.step.unwrap_or(defaults.step);
+    let pixel_samples = args.pixel_samples.unwrap_or(defaults.pixel_samples);
+    let tolerance = args.tolerance.unwrap_or(defaults.tolerance.rel);
+    let max_iterations = args.max_iterations.unwrap_or(defaults.tolerance.max_steps);
     let precision_arg = args.precision.unwrap_or(PrecisionArg::F64);
     let shadows_arg = args.shadows.unwrap_or(ShadowsArg::Exact);
     if !(MIN_STEP..=1.0).contains(&step) {
@@ -272,7 +273,10 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         );
     }
     if !(tolerance.is_finite() && (0.0..1.0).contains(&tolerance)) {
-        bail!("--tolerance {tolerance}: must be in [0, 1) (0 runs exactly --max-iterations steps)");
+        bail!(
+            "--tolerance {}: must be in [0, 1) (0 runs exactly --max-iterations steps)",
+            solvers::error::Compact(tolerance)
+        );
     }
     let n = channels[0].medium.grid.n;
     if !pt {
@@ -319,7 +323,7 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             rel: tolerance,
             max_steps: max_iterations,
         },
-        ..PipelineConfig::default()
+        ..defaults
     };
     if let Renderer::Pipeline(m) = &renderer {
         config.method = m.clone();
