@@ -31,6 +31,7 @@ pub mod medium;
 pub mod method;
 pub mod noise;
 pub mod pipeline;
+pub mod rde;
 pub mod real;
 pub mod scene;
 pub mod scenes;

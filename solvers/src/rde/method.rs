@@ -1,0 +1,134 @@
+//! The steady RDE behind the [`Method`] interface: the registry entry `rde[:operator]`.
+//!
+//! The method runs the FTCS of [`crate::rde`] to its steady state on the problem's medium:
+//! β = 1/(3σt∆) capped at [`super::BETA_MAX`] (g = 0, as the thesis fixes in Ch. 4, and as
+//! CDA scatters isotropically with σs as given), a = (1 − α)σt∆, source q = the problem's
+//! emission, φ = 0 on the outermost layer (as CDA). It steps with the default r = 0.9 r_G.
+//!
+//! **Tolerance.** It stops when R̄/j̄ < [`Tolerance::rel`], with R_p = (φⁿ⁺¹_p − φⁿ_p)/(c∆t),
+//! which is FLD Eq 37's residual of the same linear system CDA solves (the RMS over the same
+//! interior window, normalised by the same j̄; code shared with [`crate::fld`]): at one `rel`
+//! CDA and RDE stop at the same residual of the same discrete equation. `rel` = 0 runs
+//! exactly `max_steps` steps.
+//!
+//! Variants: `conservative` (default), `expanded` (thesis Eq 4.8, sign fixed), `verbatim`
+//! (thesis Eq 4.8 as printed; reproduction only). Parameters: `safety` (the factor on r_G)
+//! and `r` (a fixed r = c∆t/∆, checked against r_G).
+
+use super::{Coefficients, Operator, RdeConfig, Run, TimeStep};
+use crate::method::{
+    Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem, Tolerance,
+};
+use crate::{Backend, Grid, Precision, SolverError};
+
+/// The steady RDE with its settings.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RdeMethod {
+    /// The solver settings; `run` is replaced by `Steady` with the [`Tolerance`] of each
+    /// solve.
+    pub config: RdeConfig,
+}
+
+impl RdeMethod {
+    /// The settings of one solve.
+    pub fn config_for(&self, tolerance: &Tolerance) -> RdeConfig {
+        RdeConfig {
+            run: Run::Steady {
+                tolerance: Some(tolerance.rel),
+                max_steps: tolerance.max_steps,
+            },
+            ..self.config.clone()
+        }
+    }
+
+    fn with_params(mut self, params: &Params) -> Result<Self, SolverError> {
+        if let Some(s) = params.get("safety") {
+            self.config.time_step = TimeStep::Gershgorin { safety: s };
+        }
+        if let Some(r) = params.get("r") {
+            self.config.time_step = TimeStep::Fixed(r);
+        }
+        self.config.validate()?;
+        Ok(self)
+    }
+}
+
+impl Method for RdeMethod {
+    fn name(&self) -> String {
+        match self.config.operator {
+            Operator::Conservative => "rde".into(),
+            op => format!("rde:{}", op.name()),
+        }
+    }
+
+    fn capabilities(&self) -> Capabilities {
+        Capabilities {
+            gpu: true,
+            f64: true,
+            volume_source: true,
+            anisotropic: false,
+            lights: LightInput::Baked,
+            conserves_energy: false,
+        }
+    }
+
+    fn solve(
+        &self,
+        backend: &Backend<'_>,
+        problem: &Problem<'_>,
+        tolerance: &Tolerance,
+        observer: &mut dyn FnMut(usize, f64),
+    ) -> Result<Fluence, SolverError> {
+        tolerance.validate()?;
+        let coef = Coefficients::from_medium(problem.medium, 0.0)?;
+        let cfg = self.config_for(tolerance);
+        super::solve(backend, &coef, &cfg, |i, r| observer(i, r)).map(|s| s.erase())
+    }
+
+    fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {
+        &[&super::gpu::SPEC]
+    }
+
+    fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {
+        // φ read and written, β, a, s read: 5 values per voxel (as `CpuRde::bytes_per_step`).
+        5 * grid.len() * precision.bytes()
+    }
+}
+
+/// The thesis's unsteady radiance diffusion, stepped to its steady state.
+pub const RDE: MethodFamily = MethodFamily {
+    name: "rde",
+    title: "unsteady radiance diffusion (RDE), FTCS to steady state",
+    paper: "Murray, Legible Visualization of Semi-Transparent Objects (thesis Eqs 4.1–4.9)",
+    variants: "conservative|expanded|verbatim",
+    params: &[
+        (
+            "safety",
+            "factor on the Gershgorin bound r_G of the time step, in (0, 1]; default 0.9",
+        ),
+        (
+            "r",
+            "fixed r = c∆t/∆ (the thesis uses 0.1), rejected above r_G",
+        ),
+    ],
+    build: |variant, params| {
+        let operator = match variant {
+            None | Some("conservative") => Operator::Conservative,
+            Some("expanded") => Operator::ThesisExpanded,
+            Some("verbatim") => Operator::ThesisVerbatim,
+            Some(v) => {
+                return Err(SolverError::UnknownName {
+                    what: "variant of rde",
+                    got: v.to_string(),
+                    known: "conservative, expanded, verbatim".into(),
+                });
+            }
+        };
+        Ok(Box::new(
+            RdeMethod {
+                config: RdeConfig::default().with_operator(operator),
+            }
+            .with_params(params)?,
+        ))
+    },
+};

@@ -1,0 +1,708 @@
+//! Unsteady radiance diffusion (RDE) by FTCS finite differences (Murray, *Legible
+//! Visualization of Semi-Transparent Objects using Light Transport*, thesis Ch. 4).
+//!
+//! DOCS
+pub mod cpu;
+pub mod gpu;
+pub mod method;
+
+pub use cpu::CpuRde;
+pub use gpu::GpuRde;
+pub use method::{RDE, RdeMethod};
+
+use crate::fld::residual::ResidualWindow;
+use crate::gpu::Timer;
+use crate::method::{Solution, Stop};
+use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
+
+/// The spatial operator of the FTCS update (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Operator {
+    /// Divergence form Σ_s β_ps (φ_s − φ_p) with face coefficients β_ps = (β_p + β_s)/2, as
+    /// FLD Eq 31's D_ps: conservative, symmetric, positive for r ≤ r_pos.
+    #[default]
+    Conservative,
+    /// Thesis Eq 4.8 with the sign of the ∇β·∇φ term fixed to +.
+    ThesisExpanded,
+    /// Thesis Eq 4.8 exactly as printed (− sign): reproduction only.
+    ThesisVerbatim,
+}
+
+impl Operator {
+    /// All three, in declaration order.
+    pub const ALL: [Operator; 3] = [
+        Operator::Conservative,
+        Operator::ThesisExpanded,
+        Operator::ThesisVerbatim,
+    ];
+
+    /// `conservative`, `expanded` or `verbatim`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Operator::Conservative => "conservative",
+            Operator::ThesisExpanded => "expanded",
+            Operator::ThesisVerbatim => "verbatim",
+        }
+    }
+
+    /// The id of the `OP` override constant of `rde.wgsl` (and the CPU kernel's const
+    /// parameter).
+    pub(crate) fn id(self) -> u8 {
+        match self {
+            Operator::Conservative => 0,
+            Operator::ThesisExpanded => 1,
+            Operator::ThesisVerbatim => 2,
+        }
+    }
+}
+
+/// What holds at the grid's outer faces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BoundaryCondition {
+    /// φ = 0 on the outermost voxel layer, which is never updated; its β enters the face
+    /// coefficients (the CDA layout of `fld::Boundary::Zero`).
+    #[default]
+    Dirichlet,
+    /// Zero flux (clamp-to-edge): every voxel is updated, and a neighbour outside the grid is
+    /// the voxel itself.
+    Neumann,
+}
+
+/// How r = c∆t/∆ is chosen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TimeStep {
+    /// r = safety · r_G, r_G = 2/max_p(a_p + 2Σ_s β_ps) (Gershgorin bound of the conservative
+    /// operator). The default, safety 0.9.
+    Gershgorin {
+        /// Factor in (0, 1].
+        safety: f64,
+    },
+    /// A given r (the thesis's 0.1), rejected with [`SolverError::StepAboveBound`] above r_G.
+    Fixed(f64),
+    /// Local time step r_p = safety/(a_p + Σ_s β_ps): damped Jacobi. The steady state is the
+    /// same; the transient is not physical.
+    Local {
+        /// Factor in (0, 1].
+        safety: f64,
+    },
+}
+
+impl Default for TimeStep {
+    fn default() -> Self {
+        TimeStep::Gershgorin { safety: 0.9 }
+    }
+}
+
+/// Which bound a time step is checked against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum StepCheck {
+    /// The Gershgorin bound r_G of the conservative operator (sufficient for it).
+    #[default]
+    Gershgorin,
+    /// Also thesis Eq 4.9 at every updated voxel (with the thesis's worst case |∆β| = 1):
+    /// `Fixed` above it is an error, `Gershgorin` and `Local` are capped by it.
+    Eq49Strict,
+}
+
+/// How long to run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Run {
+    /// Until R̄/j̄ (FLD Eq 37's normalised residual) < `tolerance` or `max_steps`.
+    Steady {
+        /// `None`: [`Real::DEFAULT_TOLERANCE`] (10⁻⁶ f64, 10⁻⁴ f32). 0 runs `max_steps`.
+        tolerance: Option<f64>,
+        /// Step cap.
+        max_steps: usize,
+    },
+    /// Exactly `steps` steps (the thesis's one step per frame), φ kept every
+    /// `snapshot_every` steps (0: none).
+    Frames {
+        /// Steps to run.
+        steps: usize,
+        /// Snapshot interval (0: no snapshots).
+        snapshot_every: usize,
+    },
+}
+
+impl Default for Run {
+    fn default() -> Self {
+        Run::Steady {
+            tolerance: None,
+            max_steps: 100_000,
+        }
+    }
+}
+
+/// Solver settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RdeConfig {
+    /// The spatial operator.
+    pub operator: Operator,
+    /// Outer boundary.
+    pub boundary: BoundaryCondition,
+    /// How r is chosen.
+    pub time_step: TimeStep,
+    /// What r is checked against.
+    pub check: StepCheck,
+    /// Run mode.
+    pub run: Run,
+    /// Voxels next to the boundary layer left out of the RMS residual, as
+    /// `FldConfig::residual_margin`.
+    pub residual_margin: usize,
+    /// GPU: steps recorded per submission before the state is read back.
+    pub check_every: u32,
+}
+
+impl Default for RdeConfig {
+    fn default() -> Self {
+        Self {
+            operator: Operator::Conservative,
+            boundary: BoundaryCondition::Dirichlet,
+            time_step: TimeStep::default(),
+            check: StepCheck::Gershgorin,
+            run: Run::default(),
+            residual_margin: 1,
+            check_every: 32,
+        }
+    }
+}
+
+impl RdeConfig {
+    /// Builder: operator.
+    pub fn with_operator(mut self, op: Operator) -> Self {
+        self.operator = op;
+        self
+    }
+
+    /// Builder: boundary condition.
+    pub fn with_boundary(mut self, b: BoundaryCondition) -> Self {
+        self.boundary = b;
+        self
+    }
+
+    /// Builder: time step.
+    pub fn with_time_step(mut self, t: TimeStep) -> Self {
+        self.time_step = t;
+        self
+    }
+
+    /// Builder: step check.
+    pub fn with_check(mut self, c: StepCheck) -> Self {
+        self.check = c;
+        self
+    }
+
+    /// Builder: run to R̄/j̄ < `tol` or `max_steps`.
+    pub fn steady(mut self, tol: f64, max_steps: usize) -> Self {
+        self.run = Run::Steady {
+            tolerance: Some(tol),
+            max_steps,
+        };
+        self
+    }
+
+    /// Builder: exactly `steps` steps, snapshots every `snapshot_every` (0: none).
+    pub fn frames(mut self, steps: usize, snapshot_every: usize) -> Self {
+        self.run = Run::Frames {
+            steps,
+            snapshot_every,
+        };
+        self
+    }
+
+    /// Checks every parameter.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        let bad = |name, value, reason| {
+            Err(SolverError::BadParameter {
+                name,
+                value,
+                reason,
+            })
+        };
+        match self.time_step {
+            TimeStep::Gershgorin { safety } | TimeStep::Local { safety } => {
+                if !(safety > 0.0 && safety <= 1.0) {
+                    return bad("safety", safety, "the time-step safety factor must be in (0, 1]");
+                }
+            }
+            TimeStep::Fixed(r) => {
+                if !(r.is_finite() && r > 0.0) {
+                    return bad("r", r, "r = c∆t/∆ must be finite and > 0");
+                }
+            }
+        }
+        if let Run::Steady {
+            tolerance: Some(t), ..
+        } = self.run
+        {
+            if !(t.is_finite() && t >= 0.0) {
+                return bad("tolerance", t, "must be finite and ≥ 0");
+            }
+        }
+        if self.check_every == 0 {
+            return bad("check_every", 0.0, "must be at least 1");
+        }
+        Ok(())
+    }
+
+    /// The step cap of the run mode.
+    pub fn max_steps(&self) -> usize {
+        match self.run {
+            Run::Steady { max_steps, .. } => max_steps,
+            Run::Frames { steps, .. } => steps,
+        }
+    }
+}
+
+/// The largest β = D/∆ the physical API produces (σ′t∆ ≥ 1/3); larger values are capped
+/// and counted (see the module docs).
+pub const BETA_MAX: f64 = 1.0;
+
+/// The per-voxel inputs of the FTCS update in the thesis's parametrisation, in `f64`, every
+/// field x fastest and including the boundary layer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Coefficients {
+    /// The grid.
+    pub grid: Grid,
+    /// β = D/∆ (thesis Eq 4.7), in [0, [`BETA_MAX`]].
+    pub beta: Vec<f64>,
+    /// a = Ka∆, the absorption optical depth of one voxel, ≥ 0.
+    pub ka_dl: Vec<f64>,
+    /// Volume source q (power per volume), ≥ 0; enters each step as r∆q.
+    pub source: Vec<f64>,
+    /// φ at t = 0 (power per area); `None`: 0. With a Dirichlet boundary the boundary layer
+    /// is held at 0 whatever this says.
+    pub initial: Option<Vec<f64>>,
+    /// Voxels whose β was capped at [`BETA_MAX`] ([`Coefficients::from_medium`]).
+    pub beta_capped: usize,
+}
+
+impl Coefficients {
+    /// From physical parameters: D = 1/(3σt(1 − αg)) (thesis Eq 4.2 with K′t = σt(1 − αg)),
+    /// β = D/∆ capped at [`BETA_MAX`] (vacuum gets the cap), a = (1 − α)σt∆, q = the
+    /// medium's emission.
+    pub fn from_medium(medium: &Medium<f64>, g: f64) -> Result<Self, SolverError> {
+        medium.validate()?;
+        if !(g.is_finite() && g > -1.0 && g < 1.0) {
+            return Err(SolverError::BadParameter {
+                name: "g",
+                value: g,
+                reason: "the HG mean cosine must be in (−1, 1)",
+            });
+        }
+        let dl = medium.grid.dl;
+        let mut capped = 0;
+        let beta = medium
+            .sigma_t
+            .iter()
+            .zip(&medium.albedo)
+            .map(|(&st, &al)| {
+                let b = 1.0 / (3.0 * st * (1.0 - al * g) * dl);
+                if b > BETA_MAX || b.is_nan() {
+                    capped += 1;
+                    BETA_MAX
+                } else {
+                    b
+                }
+            })
+            .collect();
+        let ka_dl = medium
+            .sigma_t
+            .iter()
+            .zip(&medium.albedo)
+            .map(|(&st, &al)| (1.0 - al) * st * dl)
+            .collect();
+        Ok(Self {
+            grid: medium.grid,
+            beta,
+            ka_dl,
+            source: medium.emission.clone(),
+            initial: None,
+            beta_capped: capped,
+        })
+    }
+
+    /// The thesis's user-facing maps directly: β ∈ [0, 1] and a = Ka∆ ≥ 0 per voxel, with
+    /// source q ≥ 0. Validated (see [`Coefficients::validate`]).
+    pub fn from_maps(
+        grid: Grid,
+        beta: Vec<f64>,
+        ka_dl: Vec<f64>,
+        source: Vec<f64>,
+    ) -> Result<Self, SolverError> {
+        let c = Self {
+            grid,
+            beta,
+            ka_dl,
+            source,
+            initial: None,
+            beta_capped: 0,
+        };
+        c.validate()?;
+        Ok(c)
+    }
+
+    /// A uniform medium (β, a) on `grid` without a source.
+    pub fn uniform(grid: Grid, beta: f64, ka_dl: f64) -> Result<Self, SolverError> {
+        let n = grid.len();
+        Self::from_maps(grid, vec![beta; n], vec![ka_dl; n], vec![0.0; n])
+    }
+
+    /// Builder: the initial field.
+    pub fn with_initial(mut self, phi0: Vec<f64>) -> Self {
+        self.initial = Some(phi0);
+        self
+    }
+
+    /// Checks sizes and ranges: β ∈ [0, [`BETA_MAX`]], a ≥ 0, q ≥ 0, initial φ finite, all
+    /// finite; errors name the field and the voxel.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        let n = self.grid.len();
+        let mut fields: Vec<(&'static str, &Vec<f64>)> = vec![
+            ("beta", &self.beta),
+            ("ka_dl", &self.ka_dl),
+            ("source", &self.source),
+        ];
+        if let Some(v) = &self.initial {
+            fields.push(("initial", v));
+        }
+        for (field, v) in &fields {
+            if v.len() != n {
+                return Err(SolverError::FieldSize {
+                    field,
+                    expected: n,
+                    got: v.len(),
+                });
+            }
+        }
+        let check = |field: &'static str, v: &[f64], ok: fn(f64) -> bool, range| match v
+            .iter()
+            .position(|&x| !ok(x))
+        {
+            Some(index) => Err(SolverError::FieldValue {
+                field,
+                index,
+                value: v[index],
+                range,
+            }),
+            None => Ok(()),
+        };
+        check(
+            "beta",
+            &self.beta,
+            |x| (0.0..=BETA_MAX).contains(&x),
+            "[0, 1] (thesis Eq 4.7's β = D/∆)",
+        )?;
+        check(
+            "ka_dl",
+            &self.ka_dl,
+            |x| x.is_finite() && x >= 0.0,
+            "[0, ∞) (absorption Ka∆)",
+        )?;
+        check(
+            "source",
+            &self.source,
+            |x| x.is_finite() && x >= 0.0,
+            "[0, ∞)",
+        )?;
+        if let Some(v) = &self.initial {
+            check("initial", v, |x| x.is_finite(), "finite values")?;
+        }
+        Ok(())
+    }
+
+    /// Whether voxel `idx` is updated under `bc` (Dirichlet: interior only).
+    pub fn is_updated(&self, bc: BoundaryCondition, idx: usize) -> bool {
+        let [i, j, k] = self.grid.coords(idx);
+        bc == BoundaryCondition::Neumann || !self.grid.is_boundary(i, j, k)
+    }
+
+    /// Σ_s β_ps over the faces of voxel `idx` that carry flux under `bc` (β_ps = (β_p + β_s)/2;
+    /// Neumann: faces to outside the grid carry none).
+    pub fn face_sum(&self, bc: BoundaryCondition, idx: usize) -> f64 {
+        let g = &self.grid;
+        let [i, j, k] = g.coords(idx);
+        let p = [i, j, k];
+        let mut sum = 0.0;
+        for axis in 0..3 {
+            for dir in [-1i64, 1] {
+                let x = p[axis] as i64 + dir;
+                if x < 0 || x >= g.n[axis] as i64 {
+                    debug_assert_eq!(bc, BoundaryCondition::Neumann);
+                    continue;
+                }
+                let mut q = p;
+                q[axis] = x as usize;
+                sum += 0.5 * (self.beta[idx] + self.beta[g.index(q[0], q[1], q[2])]);
+            }
+        }
+        sum
+    }
+
+    /// The stability bounds of this medium under `bc` (module docs, "Time step").
+    pub fn bounds(&self, bc: BoundaryCondition) -> StepBounds {
+        let mut g_max: f64 = 0.0;
+        let mut pos_max: f64 = 0.0;
+        let mut eq49 = f64::INFINITY;
+        for idx in 0..self.grid.len() {
+            if !self.is_updated(bc, idx) {
+                continue;
+            }
+            let (a, s) = (self.ka_dl[idx], self.face_sum(bc, idx));
+            g_max = g_max.max(a + 2.0 * s);
+            pos_max = pos_max.max(a + s);
+            eq49 = eq49.min(eq_4_9(self.beta[idx], a));
+        }
+        StepBounds {
+            gershgorin: 2.0 / g_max,
+            positivity: 1.0 / pos_max,
+            eq49,
+        }
+    }
+
+    /// Voxels where an expanded operator (thesis Eq 4.8) has a negative neighbour weight,
+    /// |β₊ − β₋| > 4β_p on some axis (spec §4 item 3): positivity fails there at every r.
+    pub fn expanded_violations(&self, bc: BoundaryCondition) -> usize {
+        let g = &self.grid;
+        (0..g.len())
+            .filter(|&idx| self.is_updated(bc, idx))
+            .filter(|&idx| {
+                let p = g.coords(idx);
+                (0..3).any(|axis| {
+                    let nb = |dir: i64| {
+                        let mut q = p;
+                        q[axis] = (p[axis] as i64 + dir).clamp(0, g.n[axis] as i64 - 1) as usize;
+                        self.beta[g.index(q[0], q[1], q[2])]
+                    };
+                    (nb(1) - nb(-1)).abs() > 4.0 * self.beta[idx]
+                })
+            })
+            .count()
+    }
+}
+
+/// Thesis Eq 4.9 generalised to the voxel's own a = Ka∆ (and so to g ≠ 0): diagonal
+/// dominance of the explicit update with the worst case |∆β| = 1 on every axis,
+/// 1 − r a − 6βr ≥ 6βr + (3/2)r, i.e. r ≤ 1/(a + 12β + 3/2). With a = (1 − α)/(3β) this is
+/// the printed 6β/(72β² + 9β + 2(1 − α)).
+pub fn eq_4_9(beta: f64, ka_dl: f64) -> f64 {
+    1.0 / (ka_dl + 12.0 * beta + 1.5)
+}
+
+/// The printed form of thesis Eq 4.9 (g = 0): r ≤ 6β/(72β² + 9β + 2(1 − α)).
+pub fn eq_4_9_printed(beta: f64, albedo: f64) -> f64 {
+    6.0 * beta / (72.0 * beta * beta + 9.0 * beta + 2.0 * (1.0 - albedo))
+}
+
+/// Stability bounds on r = c∆t/∆ of one medium.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepBounds {
+    /// r_G = 2/max_p(a_p + 2Σ_s β_ps): Gershgorin, sufficient for the conservative operator.
+    pub gershgorin: f64,
+    /// r_pos = 1/max_p(a_p + Σ_s β_ps): every weight of the conservative update ≥ 0.
+    pub positivity: f64,
+    /// min_p thesis Eq 4.9 ([`eq_4_9`]).
+    pub eq49: f64,
+}
+
+/// The time step a configuration resolves to on a medium: global r, or per-voxel r_p.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum ResolvedStep {
+    Global(f64),
+    Local(Vec<f64>),
+}
+
+/// Resolves and checks the time step of `cfg` on `coef`.
+pub(crate) fn resolve_step(
+    coef: &Coefficients,
+    cfg: &RdeConfig,
+    bounds: &StepBounds,
+) -> Result<ResolvedStep, SolverError> {
+    if !bounds.gershgorin.is_finite() {
+        return Err(SolverError::BadParameter {
+            name: "beta",
+            value: 0.0,
+            reason: "β and Ka∆ are 0 at every updated voxel: nothing diffuses or absorbs, so no time step is defined",
+        });
+    }
+    let strict = cfg.check == StepCheck::Eq49Strict;
+    match cfg.time_step {
+        TimeStep::Gershgorin { safety } => {
+            let r = safety * bounds.gershgorin;
+            Ok(ResolvedStep::Global(if strict {
+                r.min(bounds.eq49)
+            } else {
+                r
+            }))
+        }
+        TimeStep::Fixed(r) => {
+            if r > bounds.gershgorin {
+                return Err(SolverError::StepAboveBound {
+                    name: "r",
+                    value: r,
+                    bound: bounds.gershgorin,
+                    criterion: "the Gershgorin bound 2/max(Ka∆ + 2Σβ_ps) of the conservative operator",
+                });
+            }
+            if strict && r > bounds.eq49 {
+                return Err(SolverError::StepAboveBound {
+                    name: "r",
+                    value: r,
+                    bound: bounds.eq49,
+                    criterion: "thesis Eq 4.9 (min over voxels, worst case |∆β| = 1)",
+                });
+            }
+            Ok(ResolvedStep::Global(r))
+        }
+        TimeStep::Local { safety } => {
+            let bc = cfg.boundary;
+            Ok(ResolvedStep::Local(
+                (0..coef.grid.len())
+                    .map(|idx| {
+                        if !coef.is_updated(bc, idx) {
+                            return 0.0;
+                        }
+                        let d = coef.ka_dl[idx] + coef.face_sum(bc, idx);
+                        let r = if d > 0.0 { safety / d } else { 0.0 };
+                        if strict {
+                            r.min(eq_4_9(coef.beta[idx], coef.ka_dl[idx]))
+                        } else {
+                            r
+                        }
+                    })
+                    .collect(),
+            ))
+        }
+    }
+}
+
+/// RDE's part of a [`Solution`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RdeTrace<T> {
+    /// `Steady`: R̄/j̄ after each step (index 0 = step 1); `Frames`: empty.
+    pub residuals: Vec<f64>,
+    /// r = c∆t/∆ (`Local`: the largest r_p).
+    pub r: f64,
+    /// Whether r is per voxel (`Local`: the transient is not physical).
+    pub local: bool,
+    /// c·t = n·r·∆ after the run, the light path length travelled (a length in the grid's
+    /// units; divide by c for seconds); NaN for `Local`.
+    pub light_path: f64,
+    /// The medium's stability bounds.
+    pub bounds: StepBounds,
+    /// Voxels whose β was capped at [`BETA_MAX`].
+    pub beta_capped: usize,
+    /// Expanded operators: voxels with a negative neighbour weight (|β₊ − β₋| > 4β_p); 0 for
+    /// the conservative operator.
+    pub expanded_violations: usize,
+    /// The smallest φ of the final field (≥ 0 is guaranteed only for the conservative operator
+    /// at r ≤ r_pos).
+    pub min_phi: f64,
+    /// `Frames`: (step, φ) every `snapshot_every` steps.
+    pub snapshots: Vec<(usize, Vec<T>)>,
+}
+
+impl<T> RdeTrace<T> {
+    /// The physical time t = n∆t for light speed `c` (in the grid's length units per second).
+    pub fn time(&self, c: f64) -> f64 {
+        self.light_path / c
+    }
+}
+
+impl Default for StepBounds {
+    fn default() -> Self {
+        Self {
+            gershgorin: f64::NAN,
+            positivity: f64::NAN,
+            eq49: f64::NAN,
+        }
+    }
+}
+
+/// The result of an RDE run: φ, steps ([`Solution::steps`]), why it stopped, and the
+/// time step, bounds and residuals in [`Solution::trace`].
+pub type RdeSolution<T> = Solution<T, RdeTrace<T>>;
+
+impl<T> Solution<T, RdeTrace<T>> {
+    /// The normalised residual after each step (`Steady`).
+    pub fn residuals(&self) -> &[f64] {
+        &self.trace.residuals
+    }
+}
+
+/// Solves on any [`Backend`]; φ comes back in `f64`. `observer(step, R̄/j̄)` sees every step
+/// (CPU) or every checkpoint's steps (GPU) of a `Steady` run.
+pub fn solve(
+    backend: &Backend<'_>,
+    coef: &Coefficients,
+    config: &RdeConfig,
+    observer: impl FnMut(usize, f64),
+) -> Result<RdeSolution<f64>, SolverError> {
+    fn widen<T: Real>(s: RdeSolution<T>) -> RdeSolution<f64> {
+        s.widen_with(|t| RdeTrace {
+            residuals: t.residuals,
+            r: t.r,
+            local: t.local,
+            light_path: t.light_path,
+            bounds: t.bounds,
+            beta_capped: t.beta_capped,
+            expanded_violations: t.expanded_violations,
+            min_phi: t.min_phi,
+            snapshots: t
+                .snapshots
+                .into_iter()
+                .map(|(n, v)| (n, v.iter().map(|x| x.f()).collect()))
+                .collect(),
+        })
+    }
+    match backend {
+        Backend::Cpu(Precision::F64) => {
+            Ok(CpuRde::<f64>::new(coef, config)?.run_observed(observer))
+        }
+        Backend::Cpu(Precision::F32) => Ok(widen(
+            CpuRde::<f32>::new(coef, config)?.run_observed(observer),
+        )),
+        Backend::Gpu(ctx) => Ok(widen(GpuRde::new(ctx, coef, config)?.run_observed(observer)?)),
+    }
+}
+
+/// Assembles a solution (CPU and GPU kernels).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn solution<T: Real>(
+    grid: Grid,
+    phi: Vec<T>,
+    steps: usize,
+    stop: Stop,
+    seconds: f64,
+    setup_seconds: f64,
+    timer: Timer,
+    mut trace: RdeTrace<T>,
+    dl: f64,
+) -> RdeSolution<T> {
+    trace.min_phi = phi.iter().map(|x| x.f()).fold(f64::INFINITY, f64::min);
+    trace.light_path = if trace.local {
+        f64::NAN
+    } else {
+        steps as f64 * trace.r * dl
+    };
+    Solution {
+        grid,
+        phi,
+        steps,
+        last_change: trace.residuals.last().copied().unwrap_or(f64::NAN),
+        stop,
+        seconds,
+        setup_seconds,
+        timer,
+        balance: None,
+        trace,
+    }
+}
+
+/// The residual window of an RDE run (FLD's, shared).
+pub(crate) fn window(grid: &Grid, margin: usize) -> ResidualWindow {
+    ResidualWindow::new(grid, margin)
+}
+
+#[cfg(test)]
+mod tests;
