@@ -73,10 +73,9 @@ impl<T: Real> CpuRde<T> {
         let scale = if trivial { 1.0 } else { j_ref };
         let mut phi0 = vec![T::zero(); n];
         if let Some(init) = &coef.initial {
-            for (idx, (p, &v)) in phi0.iter_mut().zip(init).enumerate() {
-                if coef.is_updated(bc, idx) {
-                    *p = T::c(v / scale);
-                }
+            // Dirichlet: the boundary layer keeps these values for the whole run.
+            for (p, &v) in phi0.iter_mut().zip(init) {
+                *p = T::c(v / scale);
             }
         }
         let (r, rloc, local) = match &step {
