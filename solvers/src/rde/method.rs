@@ -22,11 +22,31 @@ use crate::method::{
 use crate::{Backend, Grid, Precision, SolverError};
 
 /// The steady RDE with its settings.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct RdeMethod {
     /// The solver settings; `run` is replaced by `Steady` with the [`Tolerance`] of each
     /// solve.
     pub config: RdeConfig,
+    /// The cap on β = D/∆ ([`Coefficients::from_medium_capped`]); `None`: CDA's, β ≤
+    /// 1/(3σ_ε∆) with FLD's σ_ε = 10⁻³/L (L the grid's longest edge), so that the steady
+    /// state is CDA's.
+    pub beta_max: Option<f64>,
+}
+
+impl Default for RdeMethod {
+    /// Local time step (safety 0.9) and CDA's cap: see the module docs.
+    fn default() -> Self {
+        Self {
+            config: RdeConfig::default().with_time_step(TimeStep::Local { safety: 0.9 }),
+            beta_max: None,
+        }
+    }
+}
+
+/// CDA's cap on β = D/∆ on `grid`: 1/(3σ_ε∆) with σ_ε = 10⁻³/L (FLD Eq 33's floor, as
+/// `FldConfig::sigma_eps` defaults).
+pub fn cda_beta_cap(grid: &Grid) -> f64 {
+    1.0 / (3.0 * (1e-3 / grid.extent()) * grid.dl)
 }
 
 impl RdeMethod {
@@ -42,11 +62,32 @@ impl RdeMethod {
     }
 
     fn with_params(mut self, params: &Params) -> Result<Self, SolverError> {
-        if let Some(s) = params.get("safety") {
-            self.config.time_step = TimeStep::Gershgorin { safety: s };
-        }
         if let Some(r) = params.get("r") {
             self.config.time_step = TimeStep::Fixed(r);
+        }
+        match params.get("local") {
+            Some(v) if v == 0.0 => {
+                let safety = params.get("safety").unwrap_or(0.9);
+                if params.get("r").is_none() {
+                    self.config.time_step = TimeStep::Gershgorin { safety };
+                }
+            }
+            Some(_) | None => {
+                if params.get("r").is_none() {
+                    let safety = params.get("safety").unwrap_or(0.9);
+                    self.config.time_step = TimeStep::Local { safety };
+                }
+            }
+        }
+        if let Some(b) = params.get("beta_max") {
+            if !(b.is_finite() && b >= super::BETA_MAX) {
+                return Err(SolverError::BadParameter {
+                    name: "beta_max",
+                    value: b,
+                    reason: "the β cap must be finite and ≥ 1",
+                });
+            }
+            self.beta_max = Some(b);
         }
         self.config.validate()?;
         Ok(self)
@@ -80,7 +121,9 @@ impl Method for RdeMethod {
         observer: &mut dyn FnMut(usize, f64),
     ) -> Result<Fluence, SolverError> {
         tolerance.validate()?;
-        let coef = Coefficients::from_medium(problem.medium, 0.0)?;
+        let grid = problem.medium.grid;
+        let cap = self.beta_max.unwrap_or_else(|| cda_beta_cap(&grid));
+        let coef = Coefficients::from_medium_capped(problem.medium, 0.0, cap)?;
         let cfg = self.config_for(tolerance);
         super::solve(backend, &coef, &cfg, |i, r| observer(i, r)).map(|s| s.erase())
     }
@@ -104,11 +147,19 @@ pub const RDE: MethodFamily = MethodFamily {
     params: &[
         (
             "safety",
-            "factor on the Gershgorin bound r_G of the time step, in (0, 1]; default 0.9",
+            "factor on the local (or, with local=0, the Gershgorin) time-step bound, in (0, 1]; default 0.9",
         ),
         (
             "r",
             "fixed r = c∆t/∆ (the thesis uses 0.1), rejected above r_G",
+        ),
+        (
+            "local",
+            "0: one global r = safety·r_G (the thesis's FTCS); 1 (default): local r_p = safety/(Ka∆ + Σβ_ps), damped Jacobi with the same steady state",
+        ),
+        (
+            "beta_max",
+            "cap on β = D/∆, ≥ 1 (the thesis's range is 1); default CDA's 1/(3σ_ε∆)",
         ),
     ],
     build: |variant, params| {
@@ -127,6 +178,7 @@ pub const RDE: MethodFamily = MethodFamily {
         Ok(Box::new(
             RdeMethod {
                 config: RdeConfig::default().with_operator(operator),
+                ..RdeMethod::default()
             }
             .with_params(params)?,
         ))

@@ -266,7 +266,8 @@ pub const BETA_MAX: f64 = 1.0;
 pub struct Coefficients {
     /// The grid.
     pub grid: Grid,
-    /// β = D/∆ (thesis Eq 4.7), in [0, [`BETA_MAX`]].
+    /// β = D/∆ (thesis Eq 4.7), ≥ 0 ([0, 1] from the thesis maps, at most the cap from a
+    /// medium).
     pub beta: Vec<f64>,
     /// a = Ka∆, the absorption optical depth of one voxel, ≥ 0.
     pub ka_dl: Vec<f64>,
@@ -285,7 +286,24 @@ impl Coefficients {
     /// β = D/∆ capped at [`BETA_MAX`] (vacuum gets the cap), a = (1 − α)σt∆, q = the
     /// medium's emission.
     pub fn from_medium(medium: &Medium<f64>, g: f64) -> Result<Self, SolverError> {
+        Self::from_medium_capped(medium, g, BETA_MAX)
+    }
+
+    /// As [`Coefficients::from_medium`] with the cap `beta_max` (≥ 1) instead of
+    /// [`BETA_MAX`] (steady solves of media with vacuum, see the module docs).
+    pub fn from_medium_capped(
+        medium: &Medium<f64>,
+        g: f64,
+        beta_max: f64,
+    ) -> Result<Self, SolverError> {
         medium.validate()?;
+        if !(beta_max.is_finite() && beta_max >= BETA_MAX) {
+            return Err(SolverError::BadParameter {
+                name: "beta_max",
+                value: beta_max,
+                reason: "the β cap must be finite and ≥ 1",
+            });
+        }
         if !(g.is_finite() && g > -1.0 && g < 1.0) {
             return Err(SolverError::BadParameter {
                 name: "g",
@@ -301,9 +319,9 @@ impl Coefficients {
             .zip(&medium.albedo)
             .map(|(&st, &al)| {
                 let b = 1.0 / (3.0 * st * (1.0 - al * g) * dl);
-                if b > BETA_MAX || b.is_nan() {
+                if b > beta_max || b.is_nan() {
                     capped += 1;
-                    BETA_MAX
+                    beta_max
                 } else {
                     b
                 }
@@ -342,6 +360,14 @@ impl Coefficients {
             beta_capped: 0,
         };
         c.validate()?;
+        if let Some(index) = c.beta.iter().position(|&b| b > BETA_MAX) {
+            return Err(SolverError::FieldValue {
+                field: "beta",
+                index,
+                value: c.beta[index],
+                range: "[0, 1] (thesis Eq 4.7's β = D/∆)",
+            });
+        }
         Ok(c)
     }
 
@@ -357,7 +383,7 @@ impl Coefficients {
         self
     }
 
-    /// Checks sizes and ranges: β ∈ [0, [`BETA_MAX`]], a ≥ 0, q ≥ 0, initial φ finite, all
+    /// Checks sizes and ranges: β ≥ 0, a ≥ 0, q ≥ 0, initial φ finite, all
     /// finite; errors name the field and the voxel.
     pub fn validate(&self) -> Result<(), SolverError> {
         let n = self.grid.len();
@@ -393,8 +419,8 @@ impl Coefficients {
         check(
             "beta",
             &self.beta,
-            |x| (0.0..=BETA_MAX).contains(&x),
-            "[0, 1] (thesis Eq 4.7's β = D/∆)",
+            |x| x.is_finite() && x >= 0.0,
+            "[0, ∞) (thesis Eq 4.7's β = D/∆)",
         )?;
         check(
             "ka_dl",
