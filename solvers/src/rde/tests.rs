@@ -872,3 +872,132 @@ fn physical_parameters_map_to_beta_and_absorption() {
     assert!((c.ka_dl[5] / 0.5 - ka).abs() < 1e-12);
 }
 
+
+// ---------------------------------------------------------------------------------------
+// E. GPU vs CPU (lavapipe in CI; skipped with one line without an adapter).
+
+/// The largest |gpu − cpu|/cpu where cpu > 10⁻⁶ max|cpu|.
+fn rel_where_resolved(gpu: &[f64], cpu: &[f64]) -> f64 {
+    let max = max_abs(cpu);
+    gpu.iter()
+        .zip(cpu)
+        .filter(|(_, c)| c.abs() > 1e-6 * max)
+        .map(|(g, c)| (g - c).abs() / c.abs())
+        .fold(0.0, f64::max)
+}
+
+/// E19–E21 on one device.
+///
+/// * E19: after 200 steps (transient), GPU f32 vs CPU f32 ≤ 10⁻⁴ relative where φ > 10⁻⁶ max φ,
+///   for every operator, both boundaries and the local step.
+/// * E20: at steady state (steps past convergence) both f32 backends lie within
+///   10 ε₃₂/(r λ₁) of CPU f64 (homogeneous 21³, λ₁ = a + 12β sin²(π/(2(N+1)))); `Steady` step
+///   counts of CPU f32 and GPU agree within 2 %.
+/// * E21: ping-pong hazard: 10 GPU steps equal the CPU's double-buffered result to 10⁻⁶,
+///   while an in-place (Gauss–Seidel order) update differs from it by more than 10⁻².
+#[test]
+fn e19_e21_gpu_matches_cpu() {
+    let ctx = match crate::gpu::GpuContext::for_tests() {
+        Ok(Some(c)) => c,
+        Ok(None) => {
+            crate::gpu::log_uncaptured("e19_e21_gpu_matches_cpu: skipped: no GPU adapter");
+            return;
+        }
+        Err(e) => panic!("SCATTERBENCH_REQUIRE_GPU is set: {e}"),
+    };
+    crate::gpu::log_uncaptured(&format!("e19_e21_gpu_matches_cpu: ran on {}", ctx.describe()));
+    let gpu = Backend::Gpu(&ctx);
+    let cpu32 = Backend::Cpu(Precision::F32);
+    // E19.
+    let coef = random_coef([24, 19, 21], 8, 0.2, 0.3);
+    let mut worst: f64 = 0.0;
+    for op in Operator::ALL {
+        for bc in [BoundaryCondition::Dirichlet, BoundaryCondition::Neumann] {
+            for ts in [TimeStep::default(), TimeStep::Local { safety: 0.9 }] {
+                let cfg = RdeConfig::default()
+                    .with_operator(op)
+                    .with_boundary(bc)
+                    .with_time_step(ts)
+                    .frames(200, 100);
+                let g = solve(&gpu, &coef, &cfg, |_, _| {}).unwrap();
+                let c = solve(&cpu32, &coef, &cfg, |_, _| {}).unwrap();
+                assert_eq!(g.steps, 200);
+                assert_eq!(g.trace.snapshots.len(), 2);
+                let e = rel_where_resolved(&g.phi, &c.phi);
+                assert!(e <= 1e-4, "E19 {op:?} {bc:?} {ts:?}: {e:.3e}");
+                worst = worst.max(e);
+            }
+        }
+    }
+    eprintln!("E19: max GPU vs CPU-f32 relative difference after 200 steps {worst:.3e}");
+    // E20.
+    let (m, hom) = homogeneous(21, 0.5, 0.99);
+    let _ = m;
+    let a = hom.ka_dl[0];
+    let lam = a + 12.0 * 0.5 * (std::f64::consts::PI / (2.0 * 20.0)).sin().powi(2);
+    let r = 0.9 * hom.bounds(BoundaryCondition::Dirichlet).gershgorin;
+    let bound = 10.0 * f64::from(f32::EPSILON) / (r * lam);
+    let long = RdeConfig::default().steady(0.0, 3000);
+    let f64sol = solve(&Backend::Cpu(Precision::F64), &hom, &long, |_, _| {}).unwrap();
+    assert!(f64sol.trace.residuals.last().unwrap() < &1e-9);
+    for b in [&gpu, &cpu32] {
+        let s = solve(b, &hom, &long, |_, _| {}).unwrap();
+        let e = rel_max(&s.phi, &f64sol.phi);
+        eprintln!("E20 {b}: steady vs CPU f64 {e:.3e} (bound 10ε/(rλ₁) = {bound:.3e})");
+        assert!(e <= bound, "E20 {b}: {e:.3e} > {bound:.3e}");
+    }
+    let steady = RdeConfig::default().steady(1e-4, 100_000);
+    let (sg, sc) = (
+        solve(&gpu, &hom, &steady, |_, _| {}).unwrap(),
+        solve(&cpu32, &hom, &steady, |_, _| {}).unwrap(),
+    );
+    assert!(sg.converged() && sc.converged());
+    let (ng, nc) = (sg.steps as f64, sc.steps as f64);
+    eprintln!("E20: steps to R̄/j̄ < 1e-4: GPU {ng}, CPU-f32 {nc}");
+    assert!((ng - nc).abs() <= 0.02 * nc, "E20 steps {ng} vs {nc}");
+    assert_eq!(sg.trace.residuals.len(), sg.steps);
+    // E21.
+    let coef = random_coef([16, 15, 14], 2, 0.2, 0.3);
+    let cfg = RdeConfig::default().frames(10, 0);
+    let g = solve(&gpu, &coef, &cfg, |_, _| {}).unwrap();
+    let r = 0.9 * coef.bounds(BoundaryCondition::Dirichlet).gershgorin;
+    let mut double = vec![0.0; coef.grid.len()];
+    let mut in_place = double.clone();
+    for _ in 0..10 {
+        double = naive::step(
+            &coef,
+            Operator::Conservative,
+            BoundaryCondition::Dirichlet,
+            &|_| r,
+            &double,
+        );
+        in_place = in_place_step(&coef, r, in_place);
+    }
+    let (eg, ei) = (rel_max(&g.phi, &double), rel_max(&in_place, &double));
+    eprintln!("E21: GPU vs double-buffered {eg:.3e}; in-place vs double-buffered {ei:.3e}");
+    assert!(eg <= 1e-6, "E21 GPU {eg:.3e}");
+    assert!(ei > 1e-2, "E21 the in-place control {ei:.3e}");
+}
+
+/// The conservative update written in place (each voxel sees the already-updated values of
+/// the voxels before it): the hazard the ping-pong buffers avoid.
+fn in_place_step(coef: &Coefficients, r: f64, mut phi: Vec<f64>) -> Vec<f64> {
+    let g = coef.grid;
+    for idx in 0..g.len() {
+        let p = g.coords(idx);
+        if g.is_boundary(p[0], p[1], p[2]) {
+            continue;
+        }
+        let mut lap = 0.0;
+        for axis in 0..3 {
+            for dir in [-1i64, 1] {
+                let mut q = p;
+                q[axis] = (p[axis] as i64 + dir) as usize;
+                let s = g.index(q[0], q[1], q[2]);
+                lap += 0.5 * (coef.beta[idx] + coef.beta[s]) * (phi[s] - phi[idx]);
+            }
+        }
+        phi[idx] += r * (coef.source[idx] * g.dl - coef.ka_dl[idx] * phi[idx] + lap);
+    }
+    phi
+}
