@@ -359,25 +359,14 @@ struct Fields<'a, T> {
 /// The bracket B_p = s − aφ_p + L(φ)_p of one voxel, with the six neighbours in the order
 /// x−, x+, y−, y+, z−, z+ (module docs of [`super`] for the three operators).
 #[inline(always)]
-pub(crate) fn bracket<T: Real, const OP: u8>(
-    p: T,
-    bp: T,
-    n: [T; 6],
-    bn: [T; 6],
-    a: T,
-    s: T,
-) -> T {
+pub(crate) fn bracket<T: Real, const OP: u8>(p: T, bp: T, n: [T; 6], bn: [T; 6], a: T, s: T) -> T {
     let sum = n[0] + n[1] + n[2] + n[3] + n[4] + n[5];
     let lap = sum - T::c(6.0) * p;
     if OP == 0 {
         // Σ_s (β_p + β_s)/2 (φ_s − φ_p) = ½[β_p(Σφ_s − 6φ_p) + Σ β_s φ_s − φ_p Σ β_s].
         let bsum = bn[0] + bn[1] + bn[2] + bn[3] + bn[4] + bn[5];
-        let bphi = bn[0] * n[0]
-            + bn[1] * n[1]
-            + bn[2] * n[2]
-            + bn[3] * n[3]
-            + bn[4] * n[4]
-            + bn[5] * n[5];
+        let bphi =
+            bn[0] * n[0] + bn[1] * n[1] + bn[2] * n[2] + bn[3] * n[3] + bn[4] * n[4] + bn[5] * n[5];
         s - a * p + T::c(0.5) * (bp * lap + bphi - p * bsum)
     } else {
         // Thesis Eq 4.8: β_p Σ(φ_s − φ_p) ± ¼ Σ_axes (β₊ − β₋)(φ₊ − φ₋).

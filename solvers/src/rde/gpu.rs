@@ -275,7 +275,9 @@ impl<'a> GpuRde<'a> {
     /// seconds (GPU timestamps when the device has them, else the wall clock).
     pub fn time_steps(&mut self, n: u32) -> Result<f64, SolverError> {
         let ctx = self.ctx;
-        Ok(time_pass(ctx, "rde steps", |pass| self.record_steps(pass, n))?)
+        Ok(time_pass(ctx, "rde steps", |pass| {
+            self.record_steps(pass, n)
+        })?)
     }
 
     /// Reads the current φ back (natural layout, caller's units).

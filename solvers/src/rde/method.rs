@@ -66,7 +66,7 @@ impl RdeMethod {
             self.config.time_step = TimeStep::Fixed(r);
         }
         match params.get("local") {
-            Some(v) if v == 0.0 => {
+            Some(0.0) => {
                 let safety = params.get("safety").unwrap_or(0.9);
                 if params.get("r").is_none() {
                     self.config.time_step = TimeStep::Gershgorin { safety };
@@ -125,7 +125,7 @@ impl Method for RdeMethod {
         let cap = self.beta_max.unwrap_or_else(|| cda_beta_cap(&grid));
         let coef = Coefficients::from_medium_capped(problem.medium, 0.0, cap)?;
         let cfg = self.config_for(tolerance);
-        super::solve(backend, &coef, &cfg, |i, r| observer(i, r)).map(|s| s.erase())
+        super::solve(backend, &coef, &cfg, observer).map(|s| s.erase())
     }
 
     fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {

@@ -1,7 +1,124 @@
 //! Unsteady radiance diffusion (RDE) by FTCS finite differences (Murray, *Legible
-//! Visualization of Semi-Transparent Objects using Light Transport*, thesis Ch. 4).
+//! Visualization of Semi-Transparent Objects using Light Transport*, thesis Ch. 4; the
+//! verification spec is `../shared/specs/rde.md`).
 //!
-//! DOCS
+//! ## The thesis's equations
+//! The P1 moments of the unsteady RTE (thesis Eqs 3.23–3.24) with a quasi-steady flux give
+//! Fick's law E = −D∇φ, D = 1/(3K′t), K′t = Ka + (1 − g)Ks (thesis Eqs 4.1–4.2), and
+//!
+//! (1/c) ∂φ/∂t = ∇·(D∇φ) − Ka φ + φe   (the unnumbered equation before thesis Eq 4.3).
+//!
+//! Thesis Eq 4.3 expands it as D∆φ **−** ∇D·∇φ − Kaφ + φe; the correct sign is **+**
+//! (∇·(D∇φ) = D∆φ + ∇D·∇φ), and the − is carried into the FTCS of thesis Eq 4.4 and its
+//! reparametrisation thesis Eq 4.8 with α = Ks/Kt (thesis Eq 4.5), Ka = (1 − α)/(3(1 − αg)D)
+//! (thesis Eq 4.6) and β = D/∆ (thesis Eq 4.7):
+//!
+//! φᵗ = φe + [1 − r(1 − α)/(3(1 − αg)β) − 6βr] φᵗ⁻¹ + βr Σ₆ φᵗ⁻¹ − (r/4) Σ_axes (β₊ − β₋)(φ₊ − φ₋)ᵗ⁻¹,
+//!
+//! with r = c∆t/∆. The thesis's stability condition (thesis Eq 4.9, Fig 4.1) asks the explicit
+//! update matrix to be diagonally dominant with the worst case |∆β| = 1 per axis:
+//! r ≤ 6β/(72β² + 9β + 2(1 − α)) ([`eq_4_9_printed`]; [`eq_4_9`] is the same inequality with
+//! the voxel's own a = Ka∆, 1/(a + 12β + 3/2)).
+//!
+//! ## What this module computes
+//! In grid units (a = Ka∆, the voxel's absorption optical depth; s = ∆q for a volume source q
+//! in power per volume) one step is φ ← φ + r B(φ) with
+//! B_p = s_p − a_p φ_p + L(φ)_p and, by [`Operator`]:
+//! * `Conservative` (default): L = Σ_s β_ps (φ_s − φ_p), β_ps = (β_p + β_s)/2, exactly FLD
+//!   Eq 31's D_ps = (D_p + D_s)/2, i.e. the divergence form. Its steady state solves CDA's
+//!   linear system (FLD Eq 32 with F = 1/3).
+//! * `ThesisExpanded`: L = β_p Σ_s (φ_s − φ_p) **+** ¼ Σ_axes (β₊ − β₋)(φ₊ − φ₋) (thesis
+//!   Eq 4.8, sign fixed).
+//! * `ThesisVerbatim`: the same with **−** (thesis Eq 4.8 as printed; reproduction only).
+//!
+//! The three are the same discrete operator in a homogeneous medium. Physical inputs
+//! ([`Coefficients::from_medium`]): β = 1/(3σt(1 − αg)∆), a = (1 − α)σt∆; the thesis's maps
+//! ([`Coefficients::from_maps`]): β ∈ [0, 1] and a ≥ 0 per voxel directly.
+//!
+//! * [`RdeConfig`]: operator, [`BoundaryCondition`], [`TimeStep`], [`StepCheck`], [`Run`].
+//! * [`cpu::CpuRde`]: the rayon kernel, generic over `f32`/`f64`, deterministic for any
+//!   thread count (ping-pong buffers; residual partials summed in slab order).
+//! * [`gpu::GpuRde`]: the wgpu kernel (f32, `rde.wgsl`), same layout and arithmetic.
+//! * [`solve`]: backend dispatch; [`RdeSolution`] carries steps, r, the physical time
+//!   ([`RdeTrace::light_path`] = n·c∆t), the bounds and counts of the medium.
+//! * [`method::RdeMethod`]: the steady RDE as a registered method (`rde[:expanded|verbatim]`).
+//!
+//! ## Time step
+//! r_G = 2/max_p(a_p + 2Σ_s β_ps) (Gershgorin, sufficient for the symmetric conservative
+//! operator; tight in uniform media), r_pos = 1/max_p(a_p + Σ_s β_ps) (every weight ≥ 0),
+//! and min_p thesis Eq 4.9 are computed per medium ([`StepBounds`], in every solution's trace).
+//! [`TimeStep::Gershgorin`] (default, safety 0.9), [`TimeStep::Fixed`] (rejected above r_G
+//! with [`SolverError::StepAboveBound`] naming `r`; [`StepCheck::Eq49Strict`] also rejects it
+//! above Eq 4.9), [`TimeStep::Local`] (r_p = safety/(a_p + Σβ_ps): damped Jacobi, same steady
+//! state, non-physical transient; [`RdeTrace::light_path`] is NaN).
+//!
+//! ## Stopping rule
+//! `Steady{tol}` stops when R̄/j̄ < tol with R_p = (φⁿ⁺¹_p − φⁿ_p)/(c∆t) = B_p/∆ evaluated
+//! before the update: FLD Eq 37's residual of the same equation, with FLD's RMS window
+//! (interior minus `residual_margin` voxels) and j̄ normalisation, through the code FLD uses
+//! (`fld::residual`). [`crate::method::Tolerance::rel`] maps to tol one to one (see
+//! [`method`]). `Frames(n)` runs n steps (the thesis's one step per frame) with snapshots.
+//!
+//! ## Decisions where the paper is silent (each with its measurement and test, `tests.rs`)
+//! * **Conservative operator by default.** In homogeneous media all three operators give
+//!   CDA's steady state: max|∆φ|/max φ = 3.6·10⁻¹² (α = 0.9, 878 steps) and 1.2·10⁻¹¹
+//!   (α = 0.99, 3367 steps) in f64 at R̄/j̄ < 10⁻¹¹, 33³ (test `a1_…`). In a smooth β bump
+//!   (0.5 → 0.9 over ≈ 8 voxels) `Conservative` equals CDA to 4.7·10⁻¹², `ThesisExpanded`
+//!   differs by 1.6·10⁻³ (relative L2), and that difference falls 3.86× when ∆ halves at fixed
+//!   physical D (5.87·10⁻³ → 1.52·10⁻³, second order; `a2_…`). Across a one-voxel step
+//!   β 0.1 | 0.9 the expanded form has negative neighbour weights on the whole plane
+//!   (|β₊ − β₋| > 4β_p, counted in [`RdeTrace::expanded_violations`]; `a3_…`), the
+//!   conservative one equals CDA (3.3·10⁻¹²) and stays ≥ 0. With random voxel-scale
+//!   β ∈ U[0.01, 1] at α = 1 and r = 0.02 (inside Eq 4.9's 0.074) `ThesisExpanded` grew
+//!   1.3·10¹²× (3D 10³) and 8.1·10²⁰× (2D 22², Neumann) in 20 000 steps while
+//!   `Conservative` decayed (0.72, 0.093; `b8_…`); over seeds 0–7 of a similar generator it
+//!   grew > 10³× in 4/8 (3D) and 7/8 (2D) media, `ThesisVerbatim` in 6/8 (3D), the
+//!   conservative form in none. It is also the only one that conserves per step (imbalance
+//!   1.1·10⁻¹⁵ vs 2.3·10⁻² expanded; `d14_…`) and is reciprocal (asymmetry 3.6·10⁻¹³ vs 0.11;
+//!   `d17_…`).
+//! * **Boundary.** The thesis states none. Dirichlet (default): the outermost layer holds its
+//!   initial values (0 without an initial field, as CDA's `Boundary::Zero`) and is never
+//!   updated; its β enters the face coefficient as CDA's D does. With the Dirichlet values of
+//!   FLD Eq 27 a point source matches FLD Eq 27's shells beyond 3 voxels within 5.4·10⁻³
+//!   (f64) and 7.9·10⁻³ (f32) (`a5_…`, bound 2 %). Neumann: clamp-to-edge, every voxel
+//!   updated, no flux through the walls (tested against the plain update).
+//! * **Time step.** Default 0.9 r_G. In uniform 16³ Dirichlet media over a 10 × 10 (β, α)
+//!   grid the top Dirichlet mode decays by exactly 1 − r(a + 12β cos²(π/(2(N+1)))) per step
+//!   (10⁻¹²), grows at 1.02 r_crit and decays at 0.98 r_crit; r_crit/r_G ≥ 1.0009 and
+//!   Eq 4.9 < r_crit everywhere (`b6_…`). At r = r_G the conservative update never increased
+//!   ‖φ‖₂ in 5000 steps on a β step, random β, a voxel checkerboard and the thesis's gradient
+//!   mapping of a tube (`b7_…`). The thesis's r = 0.1 on β = 1, α = 0 exceeds Eq 4.9 (0.072)
+//!   but not r_G (0.162): accepted by default, rejected by `Eq49Strict`; 0.2 rejected by both
+//!   (`b9_…`). Positivity holds only up to r_pos, which the default exceeds where a > 1.5β;
+//!   [`RdeTrace::min_phi`] records the final minimum; at r = r_pos φ stayed ≥ 0 at every step
+//!   on media with 10⁴ β contrast and a up to 10 (`d16_…`).
+//! * **Sources.** q is a volume source (power per volume) added as r∆q per step, so the steady
+//!   state does not depend on ∆t: r and r/2 agree to 3.9·10⁻¹³ (741 and 1493 steps; `a4_…`).
+//! * **Transient.** A unit pulse (β = 0.5, a = 0.01, 65³) keeps Σφ = (1 − ra)ⁿ to 4·10⁻⁹ and
+//!   matches (4πβτ)^{−3/2}e^{−R²/(4βτ)}(1 − ra)ⁿ, τ = nr, to 3.7·10⁻³ (r = 0.1) and 6.7·10⁻³
+//!   (r = 0.3) relative L2 beyond 2 voxels (`d15_…`); the discrete decay (1 − ra)ⁿ is used,
+//!   not e^{−aτ}.
+//! * **β cap.** The physical API caps β at [`BETA_MAX`] = 1 (σ′t∆ ≥ 1/3, the thesis's range;
+//!   vacuum otherwise forces r → 0) and counts the capped voxels
+//!   ([`Coefficients::beta_capped`]). **Overturned for the registered method**: on
+//!   `scenes/cloud_directional.toml --quick` (18³ solve grid) the cap makes the
+//!   multiple-scattering image 5.26× CDA's (relative L2 3.7), because vacuum and thin voxels
+//!   diffuse with D = ∆ instead of streaming; β ≤ 10 gives 1.60×, β ≤ 100 1.05× but needs
+//!   15 891 global steps. The method therefore uses CDA's cap 1/(3σ_ε∆) (σ_ε = 10⁻³/L) and the
+//!   local step: its steady state is CDA's system, reached in 493 steps, and the image is
+//!   within 2.0·10⁻⁵ (relative L2) of CDA's (CDA's SOR: 59 iterations). `local=0 beta_max=1`
+//!   gives the thesis's FTCS (448 steps, the 5.26× image).
+//! * **Normalisation.** The run is on q/j̄ (or, without a source, on φ₀/max|φ₀|·∆), as FLD:
+//!   φ(λq)/λ = φ(q) to rounding for λ = 10⁻³⁰ … 10³⁰ in f32 and f64 (`d18_…`).
+//! * **GPU.** Same layout and arithmetic as the CPU; ping-pong buffers, one dispatch per
+//!   step, residual reduced on the GPU in a fixed order. On lavapipe the GPU equals CPU f32
+//!   bitwise after 200 steps for every operator, boundary and step mode; at steady state both
+//!   f32 backends lie 1.0·10⁻⁷ from f64 (bound 10ε₃₂/(rλ₁) = 9.1·10⁻⁵); step counts to
+//!   R̄/j̄ < 10⁻⁴ agree (463, 463); 10 GPU steps equal the double-buffered CPU result to
+//!   1.1·10⁻⁷ where an in-place update differs by 9.8·10⁻² (`e19_e21_…`).
+//! * **Typos and units** (thesis): the printed δy, δz definitions, "does vary in time" for
+//!   Qe, N/S swapped between Ch. 3 and Ch. 4 (Ch. 4's N = (i + 1, j, k) is used), and φe
+//!   "incorporating c∆t" (here q, with the c∆t = r∆ factor applied by the step).
 pub mod cpu;
 pub mod gpu;
 pub mod method;
@@ -224,7 +341,11 @@ impl RdeConfig {
         match self.time_step {
             TimeStep::Gershgorin { safety } | TimeStep::Local { safety } => {
                 if !(safety > 0.0 && safety <= 1.0) {
-                    return bad("safety", safety, "the time-step safety factor must be in (0, 1]");
+                    return bad(
+                        "safety",
+                        safety,
+                        "the time-step safety factor must be in (0, 1]",
+                    );
                 }
             }
             TimeStep::Fixed(r) => {
@@ -694,7 +815,9 @@ pub fn solve(
         Backend::Cpu(Precision::F32) => Ok(widen(
             CpuRde::<f32>::new(coef, config)?.run_observed(observer),
         )),
-        Backend::Gpu(ctx) => Ok(widen(GpuRde::new(ctx, coef, config)?.run_observed(observer)?)),
+        Backend::Gpu(ctx) => Ok(widen(
+            GpuRde::new(ctx, coef, config)?.run_observed(observer)?,
+        )),
     }
 }
 

@@ -187,7 +187,10 @@ fn a1_homogeneous_steady_state_equals_cda(p: Precision) {
             assert!(s.converged(), "{op:?} α={albedo}: {:?}", s.stop);
             let e = rel_max(&s.phi, &reference);
             let bound = if p == Precision::F64 { 1e-6 } else { 1e-3 };
-            eprintln!("A1 {p:?} {op:?} α={albedo}: {} steps, max|Δφ|/max φ = {e:.2e}", s.steps);
+            eprintln!(
+                "A1 {p:?} {op:?} α={albedo}: {} steps, max|Δφ|/max φ = {e:.2e}",
+                s.steps
+            );
             assert!(e <= bound, "{op:?} α={albedo}: {e:.3e} > {bound:e}");
         }
     }
@@ -282,7 +285,11 @@ fn a3_sharp_step(p: Precision) {
     )
     .unwrap();
     // The step is one voxel wide: |β₊ − β₋| = 0.8 > 4 β_p = 0.4 on the 0.1 side.
-    assert_eq!(exp.trace().expanded_violations, (n - 2) * (n - 2), "one plane");
+    assert_eq!(
+        exp.trace().expanded_violations,
+        (n - 2) * (n - 2),
+        "one plane"
+    );
 }
 
 /// A4: the steady state does not depend on r: r = 0.9 r_G and r/2 agree to ≤ 10⁻⁸ (f64) of
@@ -541,8 +548,9 @@ fn b8_expanded_grows_where_conservative_decays(p: Precision) {
         let cells = if two_d { plane } else { grid.len() };
         let b: Vec<f64> = (0..cells).map(|_| 0.01 + 0.99 * rng.next_f64()).collect();
         let x: Vec<f64> = (0..cells).map(|_| rng.next_f64() - 0.5).collect();
-        let (beta, init): (Vec<f64>, Vec<f64>) =
-            (0..grid.len()).map(|i| (b[i % cells], x[i % cells])).unzip();
+        let (beta, init): (Vec<f64>, Vec<f64>) = (0..grid.len())
+            .map(|i| (b[i % cells], x[i % cells]))
+            .unzip();
         let coef =
             Coefficients::from_maps(grid, beta, vec![0.0; grid.len()], vec![0.0; grid.len()])
                 .unwrap()
@@ -581,7 +589,15 @@ fn b9_fixed_r_presets(p: Precision) {
             .with_check(check)
             .frames(3, 0)
     };
-    assert!(solve(&Backend::Cpu(p), &coef, &cfg(0.1, StepCheck::Gershgorin), |_, _| {}).is_ok());
+    assert!(
+        solve(
+            &Backend::Cpu(p),
+            &coef,
+            &cfg(0.1, StepCheck::Gershgorin),
+            |_, _| {}
+        )
+        .is_ok()
+    );
     for (r, check, bound) in [
         (0.1, StepCheck::Eq49Strict, b.eq49),
         (0.2, StepCheck::Gershgorin, b.gershgorin),
@@ -677,12 +693,18 @@ fn d15_pulse_matches_the_greens_function(p: Precision) {
         let decay = (1.0 - r * a).powi(steps as i32);
         let mass: f64 = s.phi.iter().sum();
         let tol = if p == Precision::F64 { 1e-6 } else { 1e-4 };
-        assert!((mass / decay - 1.0).abs() < tol, "r={r}: mass {mass} vs {decay}");
+        assert!(
+            (mass / decay - 1.0).abs() < tol,
+            "r={r}: mass {mass} vs {decay}"
+        );
         let tau = steps as f64 * r;
         let (mut num, mut den) = (0.0, 0.0);
         for idx in 0..grid.len() {
             let [i, j, k] = grid.coords(idx);
-            let r2 = [i, j, k].iter().map(|&x| (x as f64 - c as f64).powi(2)).sum::<f64>();
+            let r2 = [i, j, k]
+                .iter()
+                .map(|&x| (x as f64 - c as f64).powi(2))
+                .sum::<f64>();
             if r2 <= 4.0 {
                 continue;
             }
@@ -693,7 +715,10 @@ fn d15_pulse_matches_the_greens_function(p: Precision) {
             den += green * green;
         }
         let e = (num / den).sqrt();
-        eprintln!("D15 {p:?}: r = {r}, {steps} steps: mass error {:.2e}, profile L2 {e:.2e}", mass / decay - 1.0);
+        eprintln!(
+            "D15 {p:?}: r = {r}, {steps} steps: mass error {:.2e}, profile L2 {e:.2e}",
+            mass / decay - 1.0
+        );
         assert!(e < 1e-2, "r={r}: {e:.3e}");
         assert!((s.trace.light_path - steps as f64 * r).abs() < 1e-9);
     }
@@ -708,7 +733,9 @@ fn d16_positivity(p: Precision) {
         let beta = (0..grid.len())
             .map(|_| 10f64.powf(-4.0 * rng.next_f64()))
             .collect();
-        let ka = (0..grid.len()).map(|_| 10.0 * rng.next_f64().powi(3)).collect();
+        let ka = (0..grid.len())
+            .map(|_| 10.0 * rng.next_f64().powi(3))
+            .collect();
         let q = (0..grid.len())
             .map(|_| if rng.next_f64() < 0.05 { 1.0 } else { 0.0 })
             .collect();
@@ -717,7 +744,10 @@ fn d16_positivity(p: Precision) {
         let cfg = RdeConfig::default().with_time_step(TimeStep::Fixed(rp));
         let check = |phi: Vec<f64>, step| {
             let m = phi.iter().cloned().fold(f64::INFINITY, f64::min);
-            assert!(m >= 0.0 && phi.iter().all(|x| x.is_finite()), "seed {seed} step {step}: {m}");
+            assert!(
+                m >= 0.0 && phi.iter().all(|x| x.is_finite()),
+                "seed {seed} step {step}: {m}"
+            );
         };
         match p {
             Precision::F64 => {
@@ -741,7 +771,7 @@ fn d16_positivity(p: Precision) {
 /// D17: reciprocity G(a → b) = G(b → a) to 10⁻¹⁰ (f64, stopped at R̄/j̄ < 10⁻¹⁴; f32 10⁻²,
 /// stopped at 10⁻⁶: G(a → b) is 10⁻⁴ of the source voxel's φ) for `Conservative` in a
 /// heterogeneous medium (symmetric operator); `ThesisExpanded` is not reciprocal (asymmetry
-/// > 10⁻³). β ~ U[0.2, 1], where the expanded form is still stable (at U[0.01, 1] it is not,
+/// above 10⁻³). β ~ U[0.2, 1], where the expanded form is still stable (at U[0.01, 1] it is not,
 /// B8).
 fn d17_reciprocity(p: Precision) {
     let base = random_coef([13, 12, 11], 21, 0.2, 0.2);
@@ -807,19 +837,39 @@ fn bad_input_is_a_typed_error_naming_the_parameter() {
         other => panic!("{other:?}"),
     };
     assert_eq!(
-        field(Coefficients::from_maps(grid, vec![1.5; n], vec![0.1; n], vec![0.0; n])),
+        field(Coefficients::from_maps(
+            grid,
+            vec![1.5; n],
+            vec![0.1; n],
+            vec![0.0; n]
+        )),
         "beta"
     );
     assert_eq!(
-        field(Coefficients::from_maps(grid, vec![-0.1; n], vec![0.1; n], vec![0.0; n])),
+        field(Coefficients::from_maps(
+            grid,
+            vec![-0.1; n],
+            vec![0.1; n],
+            vec![0.0; n]
+        )),
         "beta"
     );
     assert_eq!(
-        field(Coefficients::from_maps(grid, vec![0.5; n], vec![-0.1; n], vec![0.0; n])),
+        field(Coefficients::from_maps(
+            grid,
+            vec![0.5; n],
+            vec![-0.1; n],
+            vec![0.0; n]
+        )),
         "ka_dl"
     );
     assert_eq!(
-        field(Coefficients::from_maps(grid, vec![0.5; n], vec![f64::NAN; n], vec![0.0; n])),
+        field(Coefficients::from_maps(
+            grid,
+            vec![0.5; n],
+            vec![f64::NAN; n],
+            vec![0.0; n]
+        )),
         "ka_dl"
     );
     assert!(matches!(
@@ -833,7 +883,10 @@ fn bad_input_is_a_typed_error_naming_the_parameter() {
         other => panic!("{other:?}"),
     };
     for r in [0.0, -0.1, f64::NAN, f64::INFINITY, 10.0] {
-        assert_eq!(name(RdeConfig::default().with_time_step(TimeStep::Fixed(r))), "r");
+        assert_eq!(
+            name(RdeConfig::default().with_time_step(TimeStep::Fixed(r))),
+            "r"
+        );
     }
     for s in [0.0, 1.5, f64::NAN] {
         assert_eq!(
@@ -872,7 +925,6 @@ fn physical_parameters_map_to_beta_and_absorption() {
     assert!((c.ka_dl[5] / 0.5 - ka).abs() < 1e-12);
 }
 
-
 // ---------------------------------------------------------------------------------------
 // E. GPU vs CPU (lavapipe in CI; skipped with one line without an adapter).
 
@@ -905,7 +957,10 @@ fn e19_e21_gpu_matches_cpu() {
         }
         Err(e) => panic!("SCATTERBENCH_REQUIRE_GPU is set: {e}"),
     };
-    crate::gpu::log_uncaptured(&format!("e19_e21_gpu_matches_cpu: ran on {}", ctx.describe()));
+    crate::gpu::log_uncaptured(&format!(
+        "e19_e21_gpu_matches_cpu: ran on {}",
+        ctx.describe()
+    ));
     let gpu = Backend::Gpu(&ctx);
     let cpu32 = Backend::Cpu(Precision::F32);
     // E19.
