@@ -187,11 +187,14 @@ pub fn slab_events(tau: f64, albedo: f64) -> f64 {
     1.0 + scatterings_before_absorption(albedo).min(2.0 * tau + 1.0)
 }
 
-/// Expected events per path (with one shadow ray per scattering) in `medium`: scatterings
-/// `k` = the fewer of the collisions before absorption at the σt-weighted albedo and the
-/// mean-chord bound σ̄t·4V/S + 1; each of the `k + 1` segments and shadow rays crosses at
-/// most the box's chord at the majorant, σmax·4V/S + 1 events.
-pub fn path_events(medium: &solvers::Medium<f64>) -> f64 {
+/// Expected events per path (with one shadow ray per scattering) in `medium`, for paths of
+/// at most `max_order` scatterings (`None`: unlimited): scatterings `k` = the fewest of
+/// the collisions before absorption at the σt-weighted albedo, the mean-chord bound
+/// σ̄t·4V/S + 1 and `max_order`. Each of the `k + 1` segments costs σmax/σ̄t tentative
+/// collisions of delta tracking per real one, and its shadow ray that many per mean free
+/// path over at most 10 of them (ratio tracking's roulette ends it once T < 10⁻², i.e.
+/// after about 4.6 mean free paths; the bound doubles that), or over the chord if shorter.
+pub fn path_events(medium: &solvers::Medium<f64>, max_order: Option<u32>) -> f64 {
     let g = &medium.grid;
     let ext = g.n.map(|k| k as f64 * g.dl);
     let volume = ext[0] * ext[1] * ext[2];
@@ -209,9 +212,15 @@ pub fn path_events(medium: &solvers::Medium<f64>) -> f64 {
     }
     let voxels = medium.sigma_t.len().max(1) as f64;
     let mean = st / voxels;
-    let albedo = if st > 0.0 { ss / st } else { 0.0 };
-    let k = scatterings_before_absorption(albedo).min(mean * chord + 1.0);
-    (k + 1.0) * 2.0 * (max * chord + 1.0)
+    if mean <= 0.0 {
+        return 1.0;
+    }
+    let albedo = ss / st;
+    let k = scatterings_before_absorption(albedo)
+        .min(mean * chord + 1.0)
+        .min(max_order.map_or(f64::INFINITY, f64::from));
+    let ratio = max / mean;
+    (k + 1.0) * (ratio * (1.0 + (mean * chord).min(10.0)) + 1.0)
 }
 
 /// Steps of a solve on a grid of at most `n` voxels per axis stopped at tolerance `rel`
@@ -230,8 +239,8 @@ pub fn solve_steps(n: usize, rel: f64, max_steps: usize) -> f64 {
 }
 
 /// Raymarch samples of an image: pixels × rays per pixel × samples per ray (the longest
-/// chord of the box over the step), times the samples of a shadow ray per sample with exact
-/// shadows.
+/// chord of the box over the step), times the samples of two shadow rays per sample with
+/// exact shadows.
 pub fn raymarch_samples(
     pixels: f64,
     rays_per_pixel: f64,
@@ -240,7 +249,8 @@ pub fn raymarch_samples(
     shadow_rays: bool,
 ) -> f64 {
     let per_ray = chord_voxels / step + 1.0;
-    let per_sample = if shadow_rays { per_ray } else { 1.0 };
+    // A shadow ray at each sub-step end and one at its midpoint (the linearity check).
+    let per_sample = if shadow_rays { 2.0 * per_ray } else { 1.0 };
     pixels * rays_per_pixel * per_ray * per_sample
 }
 

@@ -46,7 +46,8 @@ pub struct Args {
     /// Scene file (TOML, format 1); it needs a camera and no volume emission.
     #[arg(long)]
     pub scene: PathBuf,
-    /// Paths per pixel for each renderer (default: the scene's sampler.spp; 64 with --quick).
+    /// Paths per pixel for each renderer, at least --batches (default: the scene's
+    /// sampler.spp; 64 with --quick).
     #[arg(long, value_parser = crate::common::count_u32)]
     pub spp: Option<u32>,
     /// Override the camera resolution, `W,H` (default: the scene's; 32,32 with --quick).
@@ -87,6 +88,9 @@ pub struct Row {
     pub pixels: usize,
     /// Fraction of pixels passing the corrected test.
     pub fraction_passing: f64,
+    /// The verdict (`reference::compare::Comparison::passed`): ≥ 99 % of pixels pass and
+    /// the image means agree within 3 combined standard errors.
+    pub passed: bool,
     /// Our image mean.
     pub mean_ours: f64,
     /// Its standard error.
@@ -225,7 +229,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
         bail!("--mitsuba-timeout {t}: must be a positive number of seconds");
     }
     let [width, height] = camera.resolution;
-    let events = crate::cost::path_events(&scene.medium);
+    let events = crate::cost::path_events(&scene.medium, args.max_depth);
     let paths = spp as f64 * (width * height) as f64;
     let mut work = crate::cost::Estimate::new();
     work.add(
@@ -331,6 +335,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
             variant: variant.clone(),
             pixels: c.pixels,
             fraction_passing: c.fraction_passing,
+            passed: c.passed(),
             mean_ours: c.mean_ours.0,
             mean_ours_stderr: c.mean_ours.1,
             mean_mitsuba: c.mean_theirs.0,
@@ -537,6 +542,7 @@ impl Experiment for MitsubaCompare {
                     "variant",
                     "pixels",
                     "fraction_passing",
+                    "passed",
                     "mean_ours",
                     "mean_ours_stderr",
                     "mean_mitsuba",
@@ -579,6 +585,7 @@ impl Experiment for MitsubaCompare {
         t.require(&[
             "variant",
             "fraction_passing",
+            "passed",
             "mean_ours",
             "mean_ours_stderr",
             "mean_mitsuba",
@@ -589,13 +596,15 @@ impl Experiment for MitsubaCompare {
         ])?;
         let mut out = String::from(
             "Per-pixel Welch t-test with Šidák correction (family-wise α in the table), image means with standard \
-             errors, and paths per second of both renderers measured in the same run.\n\n",
+             errors, the verdict `passed` (at least 99 % of pixels pass and the image means agree within 3 \
+             combined standard errors), and paths per second of both renderers measured in the same run.\n\n",
         );
         let rows = t.rows().map(|r| {
             vec![
                 format!("`{}`", r.get("variant")),
                 r.get("alpha").to_string(),
                 r.fixed("fraction_passing", 4),
+                r.get("passed").to_string(),
                 format!(
                     "{} ± {}",
                     r.sci("mean_ours", 4),
@@ -615,6 +624,7 @@ impl Experiment for MitsubaCompare {
                 "Mitsuba variant",
                 "α",
                 "pixels passing",
+                "passed (≥ 99 % of pixels and means within 3σ)",
                 "mean, ours",
                 "mean, Mitsuba",
                 "relative difference",

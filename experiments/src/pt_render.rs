@@ -48,7 +48,8 @@ pub struct Args {
     /// Image width and height in pixels. Default 128 (24 with --quick).
     #[arg(long, value_parser = crate::common::count_usize)]
     pub res: Option<usize>,
-    /// Samples per pixel. Default 256 (16 with --quick).
+    /// Samples per pixel, at least 16 (the batches of the standard errors). Default 256 (16
+    /// with --quick).
     #[arg(long, value_parser = crate::common::count_u32)]
     pub spp: Option<u32>,
     /// Albedo of the cloud.
@@ -179,7 +180,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<TimingRow>> {
     let scene =
         cloud_scene(n, args.albedo, args.g, res, args.seed).context("building the cloud")?;
     let renders = if args.no_global { 1.0 } else { 2.0 };
-    let events = crate::cost::path_events(&scene.medium);
+    let events = crate::cost::path_events(&scene.medium, None);
     let mut work = crate::cost::Estimate::new();
     work.add(
         format!("{renders} renders of {spp} spp × {res}² pixels × {events:.3e} events"),

@@ -354,7 +354,13 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
     let mut work = crate::cost::Estimate::new();
     let nch = channels.len() as f64;
     if pt {
-        let events = crate::cost::path_events(&channels[0].medium);
+        let (_, rendered) = pipeline::effects_of(&channels, &file.effects, &config)?;
+        let orders = if rendered.contains(solvers::scene::Effect::MultipleScattering) {
+            None
+        } else {
+            Some(1)
+        };
+        let events = crate::cost::path_events(&channels[0].medium, orders);
         work.add(
             format!(
                 "path tracing, {spp} spp × {pixels} pixels × {events:.3e} events × {nch} channels"

@@ -30,6 +30,10 @@ struct Args {
     /// Run nothing: re-render README.md from the run folders already under the root.
     #[arg(long)]
     report_only: bool,
+    /// Run only these experiments (comma-separated names, e.g. `renderings,mitsuba_compare`);
+    /// the README is re-rendered from the existing folders of the others.
+    #[arg(long, value_delimiter = ',')]
+    only: Vec<String>,
 }
 
 fn main() -> Result<()> {
@@ -42,6 +46,20 @@ fn main() -> Result<()> {
         })
     });
     let backend = args.backend.backend.to_string();
+    if let Some(bad) = args
+        .only
+        .iter()
+        .find(|n| !EXPERIMENTS.iter().any(|e| e.name == n.as_str()))
+    {
+        anyhow::bail!(
+            "--only: no experiment `{bad}`; registered: {}",
+            EXPERIMENTS
+                .iter()
+                .map(|e| e.name)
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     let runs: Vec<_> = EXPERIMENTS
         .iter()
         .flat_map(|e| e.figure_runs(args.quick).into_iter().map(move |r| (e, r)))
@@ -56,7 +74,7 @@ fn main() -> Result<()> {
         {
             outcome.notes.push(format!("Ran on the CPU only ({why})."));
         }
-        if args.report_only {
+        if args.report_only || !(args.only.is_empty() || args.only.iter().any(|n| n == e.name)) {
             outcomes.push(outcome);
             continue;
         }

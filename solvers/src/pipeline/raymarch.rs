@@ -18,10 +18,25 @@
 //! **Integration.** σt, σs and j are piecewise constant per voxel (the project convention,
 //! the same nearest-voxel fields the path tracer samples). The ray is split exactly at voxel
 //! faces (3D DDA), so the transmittance is exact. Inside a voxel the segment is cut into
-//! m = ⌈length / (step·Δl)⌉ equal sub-steps of length h; over a sub-step the source is
-//! taken at its midpoint and integrated against the exact attenuation,
-//! ∫₀ʰ e^{−σt s} ds = (1 − e^{−σt h})/σt. For the emission term (constant per voxel) this is
-//! exact whatever `step`; for the others the error is O(h²). FLD Eq 3 is the Riemann-sum
+//! m = ⌈length / (step·Δl)⌉ equal sub-steps of length h. Over a sub-step the integrand is
+//! e^{−τ(s)}·f(s), τ the total optical depth (camera side, plus the light side for single
+//! scattering) and f the rest of the source; both are evaluated at the sub-step's ends and
+//! integrated exactly as if linear ([`exp_linear`]: ∫₀ʰ e^{−(τa + cs)}(fa + f′s) ds in closed
+//! form, from the far end when τ falls along s). So:
+//! * emission (f = j/4π constant per voxel): exact whatever `step`;
+//! * multiple scattering (f = σs φ/4π, φ trilinear): exact for the attenuation, second
+//!   order in h for φ's variation;
+//! * single scattering: the depth to a light is piecewise linear along a ray in
+//!   piecewise-constant media, with kinks where the shadow ray's exit face or the voxels it
+//!   crosses change. Each sub-step checks the depth at its midpoint and is bisected (at most
+//!   [`MAX_BISECTIONS`] times) while it deviates from linear by more than [`TAU_LINEARITY`];
+//!   the phase function and 1/r² are smooth and taken linear.
+//!
+//! The default step is then right for σt·Δl from 0 to 10⁶: *measured* on albedo-1 16³ cubes
+//! (σt·Δl = 0.6, 6, 60, 6000, directional light, 48×48 rays per pixel), image means within
+//! 1.3·10⁻³ of the path tracer (|z| ≤ 0.73) and every pixel within its Šidák-corrected test,
+//! and the same image at step 0.05 (`reference/tests/raymarch_dense.rs`). The earlier
+//! midpoint rule gave 1.5·10⁻¹² for 0.021 at σt·Δl = 62.5. FLD Eq 3 is the Riemann-sum
 //! version of the same integral. Rays stop once the optical depth from the camera exceeds
 //! [`TAU_CUTOFF`] (T < 10⁻¹⁶).
 //!
@@ -101,7 +116,99 @@ pub fn render_term(
         .collect()
 }
 
+/// ∫₀ʰ e^{−c s} ds = h·(1 − e^{−ch})/(ch), for c ≥ 0 (series near 0).
+#[inline]
+fn w0(c: f64, h: f64) -> f64 {
+    let x = c * h;
+    if x < 1e-4 {
+        h * (1.0 - x / 2.0 + x * x / 6.0)
+    } else {
+        -(-x).exp_m1() / c
+    }
+}
+
+/// ∫₀ʰ e^{−c s} s ds = (1 − e^{−ch}(1 + ch))/c², for c ≥ 0 (series near 0).
+#[inline]
+fn w1(c: f64, h: f64) -> f64 {
+    let x = c * h;
+    if x < 1e-3 {
+        h * h * (0.5 - x / 3.0 + x * x / 8.0)
+    } else {
+        (-(-x).exp_m1() - x * (-x).exp()) / (c * c)
+    }
+}
+
+/// ∫₀ʰ e^{−(τa + (τb − τa)s/h)} f(s) ds with f linear from `fa` to `fb`: exact for an
+/// optical depth linear over the sub-step. `tau_a`, `tau_b` are the total optical depths
+/// (camera side plus light side) at its ends; a depth that falls along the sub-step
+/// (moving towards a light through thinner voxels) is integrated from the far end, so no
+/// exponential overflows.
+#[inline]
+fn exp_linear(tau_a: f64, tau_b: f64, fa: f64, fb: f64, h: f64) -> f64 {
+    let c = (tau_b - tau_a) / h;
+    let slope = (fb - fa) / h;
+    if c >= 0.0 {
+        (-tau_a).exp() * (fa * w0(c, h) + slope * w1(c, h))
+    } else {
+        (-tau_b).exp() * (fb * w0(-c, h) - slope * w1(-c, h))
+    }
+}
+
+/// Largest deviation of the optical depth to a light at a sub-step's midpoint from the
+/// mean of its ends for which the depth counts as linear over the sub-step (the error of
+/// e^{−τ} is then within 10⁻⁴ relative; measured: 1.4·10⁻⁸ worst relative error against the
+/// closed form of `solvers/tests/pipeline.rs`, 7·10⁻⁶ at 10⁻³).
+pub const TAU_LINEARITY: f64 = 1e-4;
+
+/// Most bisections of a sub-step whose optical depth to a light is not linear (a kink where
+/// the shadow ray's exit face changes, a denser voxel on the shadow ray's path): 2⁻²⁰ of
+/// the sub-step.
+pub const MAX_BISECTIONS: u32 = 20;
+
+/// Single scattering over the sub-step [t, t + h] of a voxel with extinction `st`, the
+/// camera-side optical depth `cam` at t, and (source, depth to the light) `fa` at t and
+/// `fb` at t + h: [`exp_linear`] when the depth to the light is linear over it (checked at
+/// the midpoint against [`TAU_LINEARITY`]), else the sum over its halves.
+#[allow(clippy::too_many_arguments)]
+fn shadowed(
+    node: &impl Fn(f64) -> (f64, f64),
+    st: f64,
+    t: f64,
+    h: f64,
+    cam: f64,
+    fa: (f64, f64),
+    fb: (f64, f64),
+    bisections: u32,
+) -> f64 {
+    let (ta, tb) = (cam + fa.1, cam + st * h + fb.1);
+    if bisections > 0 {
+        let fm = node(t + 0.5 * h);
+        let tm = cam + st * 0.5 * h + fm.1;
+        if (tm - 0.5 * (ta + tb)).abs() > TAU_LINEARITY && tm.min(ta).min(tb) < TAU_CUTOFF {
+            let half = 0.5 * h;
+            return shadowed(node, st, t, half, cam, fa, fm, bisections - 1)
+                + shadowed(
+                    node,
+                    st,
+                    t + half,
+                    half,
+                    cam + st * half,
+                    fm,
+                    fb,
+                    bisections - 1,
+                );
+        }
+    }
+    exp_linear(ta, tb, fa.0, fb.0, h)
+}
+
 /// ∫ T(s)·source(s) ds along one ray for one term.
+///
+/// Within a voxel the ray is cut into sub-steps; the source (and, for single scattering,
+/// the optical depth to each light) is evaluated at the sub-step ends and the integral
+/// over each sub-step is exact for a source linear and an optical depth linear along it
+/// ([`exp_linear`]), so a dense voxel's exponential fall-off is integrated exactly whatever
+/// `step_len` (see the module docs).
 pub fn march(
     medium: &Medium<f64>,
     sigma_s: &[f64],
@@ -115,39 +222,40 @@ pub fn march(
         return 0.0;
     };
     let to_camera = d.map(|v| -v);
-    let mut tau = 0.0;
-    let mut acc = 0.0;
+    let mut tau = 0.0f64;
+    let mut acc = 0.0f64;
     traverse(g, o, d, t0, t1, |i, a, b| {
         let len = b - a;
         let st = medium.sigma_t[i];
-        let (m, h) = match term {
-            Term::Emission => (1, len),
-            _ => {
-                let m = (len / step_len).ceil().max(1.0);
-                (m as usize, len / m)
+        let point = |t: f64| -> Vec3 { [0, 1, 2].map(|k| o[k] + t * d[k]) };
+        match term {
+            Term::Emission if medium.emission[i] > 0.0 => {
+                acc += (-tau).exp() * w0(st, len) * medium.emission[i] * INV_4PI;
             }
-        };
-        let weight = if st > 0.0 {
-            -(-st * h).exp_m1() / st
-        } else {
-            h
-        };
-        let source_at = |t: f64| -> f64 {
-            let p = [0, 1, 2].map(|k| o[k] + t * d[k]);
-            match term {
-                Term::Emission => medium.emission[i] * INV_4PI,
-                Term::Multiple { grid, phi } => {
-                    sigma_s[i] * trilinear(grid, phi, p, false) * INV_4PI
+            Term::Multiple { grid, phi } if sigma_s[i] > 0.0 => {
+                let m = (len / step_len).ceil().max(1.0) as usize;
+                let h = len / m as f64;
+                let f = |t: f64| sigma_s[i] * trilinear(grid, phi, point(t), false) * INV_4PI;
+                let mut fa = f(a);
+                for k in 0..m {
+                    let fb = f(a + (k + 1) as f64 * h);
+                    let ta = tau + st * k as f64 * h;
+                    acc += exp_linear(ta, ta + st * h, fa, fb, h);
+                    fa = fb;
                 }
-                Term::Single {
-                    lights,
-                    phase,
-                    shadows,
-                } => {
-                    let mut sum = 0.0;
-                    for l in lights {
+            }
+            Term::Single {
+                lights,
+                phase,
+                shadows,
+            } if sigma_s[i] > 0.0 => {
+                let m = (len / step_len).ceil().max(1.0) as usize;
+                let h = len / m as f64;
+                for l in lights.iter() {
+                    // (σs·p·E, optical depth to the light) at ray parameter t.
+                    let node = |t: f64| -> (f64, f64) {
+                        let p = point(t);
                         let (e, dir) = l.unattenuated(p);
-                        let t = (-l.tau_at(medium, p, shadows)).exp();
                         let pf = match phase {
                             Phase::Isotropic => INV_4PI,
                             Phase::HenyeyGreenstein { g } => {
@@ -158,21 +266,19 @@ pub fn march(
                                 INV_4PI * (1.0 - g * g) / (q * q.sqrt())
                             }
                         };
-                        sum += pf * e * t;
+                        (sigma_s[i] * pf * e, l.tau_at(medium, p, shadows))
+                    };
+                    let mut prev = node(a);
+                    for k in 0..m {
+                        let ta = a + k as f64 * h;
+                        let next = node(ta + h);
+                        let cam = tau + st * k as f64 * h;
+                        acc += shadowed(&node, st, ta, h, cam, prev, next, MAX_BISECTIONS);
+                        prev = next;
                     }
-                    sigma_s[i] * sum
                 }
             }
-        };
-        let active = match term {
-            Term::Emission => medium.emission[i] > 0.0,
-            _ => sigma_s[i] > 0.0,
-        };
-        if active {
-            for k in 0..m {
-                let tk = a + (k as f64 + 0.5) * h;
-                acc += (-(tau + st * k as f64 * h)).exp() * weight * source_at(tk);
-            }
+            _ => {}
         }
         tau += st * len;
         tau < TAU_CUTOFF
