@@ -94,6 +94,12 @@
 //!   on media with 10⁴ β contrast and a up to 10 (`d16_…`).
 //! * **Sources.** q is a volume source (power per volume) added as r∆q per step, so the steady
 //!   state does not depend on ∆t: r and r/2 agree to 3.9·10⁻¹³ (741 and 1493 steps; `a4_…`).
+//!   A [`PointSource`] of power P is q = P/∆³ in its voxel; negative power is the thesis's
+//!   negative source (Fig 4.7) and makes the source signed ([`Coefficients::signed_source`],
+//!   φ < 0 allowed): mirrored about the midplane of a mirrored medium it gives φ = 0 there
+//!   exactly (0.0 in f32 and f64; `f22_…`). Painting (thesis Fig 4.8) makes every visited
+//!   voxel a source once: the union of the path (`f23_…`). The thesis's limit of 8 sources is
+//!   a UI limit and not enforced. Forcing (re-injecting received energy) is not implemented.
 //! * **Transient.** A unit pulse (β = 0.5, a = 0.01, 65³) keeps Σφ = (1 − ra)ⁿ to 4·10⁻⁹ and
 //!   matches (4πβτ)^{−3/2}e^{−R²/(4βτ)}(1 − ra)ⁿ, τ = nr, to 3.7·10⁻³ (r = 0.1) and 6.7·10⁻³
 //!   (r = 0.3) relative L2 beyond 2 voxels (`d15_…`); the discrete decay (1 − ra)ⁿ is used,
@@ -392,7 +398,8 @@ pub struct Coefficients {
     pub beta: Vec<f64>,
     /// a = Ka∆, the absorption optical depth of one voxel, ≥ 0.
     pub ka_dl: Vec<f64>,
-    /// Volume source q (power per volume), ≥ 0; enters each step as r∆q.
+    /// Volume source q (power per volume), ≥ 0 unless `signed_source`; enters each step as
+    /// r∆q.
     pub source: Vec<f64>,
     /// φ at t = 0 (power per area); `None`: 0. With a Dirichlet boundary its values on the
     /// boundary layer are the Dirichlet values, held for the whole run (0 without it, as
@@ -400,6 +407,20 @@ pub struct Coefficients {
     pub initial: Option<Vec<f64>>,
     /// Voxels whose β was capped at [`BETA_MAX`] ([`Coefficients::from_medium`]).
     pub beta_capped: usize,
+    /// Whether `source` may be negative (the thesis's negative sources, Fig 4.7; set by
+    /// [`Coefficients::with_point_sources`] and [`Coefficients::paint`] for negative power).
+    pub signed_source: bool,
+}
+
+/// An isotropic point source (thesis §4.2.5; the thesis's UI places up to 8): power `power`
+/// (power units; negative for the thesis's negative sources, Fig 4.7) in one voxel, i.e.
+/// q = P/∆³ there, injected as r∆q per step so the steady state does not depend on ∆t.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointSource {
+    /// The voxel (i, j, k).
+    pub voxel: [usize; 3],
+    /// Its power P.
+    pub power: f64,
 }
 
 impl Coefficients {
@@ -461,6 +482,7 @@ impl Coefficients {
             source: medium.emission.clone(),
             initial: None,
             beta_capped: capped,
+            signed_source: false,
         })
     }
 
@@ -479,6 +501,7 @@ impl Coefficients {
             source,
             initial: None,
             beta_capped: 0,
+            signed_source: false,
         };
         c.validate()?;
         if let Some(index) = c.beta.iter().position(|&b| b > BETA_MAX) {
@@ -496,6 +519,60 @@ impl Coefficients {
     pub fn uniform(grid: Grid, beta: f64, ka_dl: f64) -> Result<Self, SolverError> {
         let n = grid.len();
         Self::from_maps(grid, vec![beta; n], vec![ka_dl; n], vec![0.0; n])
+    }
+
+    /// Adds point sources to the volume source (q += P/∆³ in each source's voxel). A
+    /// negative power makes the source signed (φ < 0 is then allowed, as the thesis intends).
+    pub fn with_point_sources(mut self, sources: &[PointSource]) -> Result<Self, SolverError> {
+        let g = self.grid;
+        for s in sources {
+            let idx = self.voxel_index(s.voxel)?;
+            if !s.power.is_finite() {
+                return Err(SolverError::BadParameter {
+                    name: "point_source.power",
+                    value: s.power,
+                    reason: "must be finite",
+                });
+            }
+            self.signed_source |= s.power < 0.0;
+            self.source[idx] += s.power / g.dl.powi(3);
+        }
+        Ok(self)
+    }
+
+    /// Painting (thesis Fig 4.8): the source persists along a brush path; every voxel the
+    /// path visits becomes a source of density `q` (power per volume), once however often it
+    /// is visited, so the effective source is the union of the visited voxels.
+    pub fn paint(mut self, path: &[[usize; 3]], q: f64) -> Result<Self, SolverError> {
+        if !q.is_finite() {
+            return Err(SolverError::BadParameter {
+                name: "paint.q",
+                value: q,
+                reason: "must be finite",
+            });
+        }
+        let mut visited = vec![false; self.grid.len()];
+        for &v in path {
+            let idx = self.voxel_index(v)?;
+            if !visited[idx] {
+                visited[idx] = true;
+                self.source[idx] += q;
+            }
+        }
+        self.signed_source |= q < 0.0;
+        Ok(self)
+    }
+
+    fn voxel_index(&self, v: [usize; 3]) -> Result<usize, SolverError> {
+        let g = self.grid;
+        match (0..3).find(|&a| v[a] >= g.n[a]) {
+            Some(a) => Err(SolverError::BadParameter {
+                name: "point_source.voxel",
+                value: v[a] as f64,
+                reason: "the voxel index is outside the grid",
+            }),
+            None => Ok(g.index(v[0], v[1], v[2])),
+        }
     }
 
     /// Builder: the initial field.
@@ -549,12 +626,16 @@ impl Coefficients {
             |x| x.is_finite() && x >= 0.0,
             "[0, ∞) (absorption Ka∆)",
         )?;
-        check(
-            "source",
-            &self.source,
-            |x| x.is_finite() && x >= 0.0,
-            "[0, ∞)",
-        )?;
+        if self.signed_source {
+            check("source", &self.source, |x| x.is_finite(), "finite values")?;
+        } else {
+            check(
+                "source",
+                &self.source,
+                |x| x.is_finite() && x >= 0.0,
+                "[0, ∞)",
+            )?;
+        }
         if let Some(v) = &self.initial {
             check("initial", v, |x| x.is_finite(), "finite values")?;
         }

@@ -1056,3 +1056,96 @@ fn in_place_step(coef: &Coefficients, r: f64, mut phi: Vec<f64>) -> Vec<f64> {
     }
     phi
 }
+
+// ---------------------------------------------------------------------------------------
+// F. Tools (thesis §4.2.5).
+
+/// F22: a negative point source of equal magnitude mirrored about the midplane of a
+/// mirror-symmetric medium gives φ = 0 on the midplane (to 10⁻¹² of max|φ| in f64, 10⁻⁵ in
+/// f32); φ is antisymmetric and negative on the negative side (allowed by design). A point
+/// source of power P equals a volume source P/∆³ in its voxel.
+fn f22_negative_source_cancels_on_the_midplane(p: Precision) {
+    let (nx, ny, nz) = (21, 12, 11);
+    let grid = Grid::new([nx, ny, nz], 0.5).unwrap();
+    let half = random_coef([nx / 2 + 1, ny, nz], 12, 0.05, 0.3);
+    let mirror = |idx: usize| {
+        let [i, j, k] = grid.coords(idx);
+        half.grid.index(i.min(nx - 1 - i), j, k)
+    };
+    let beta = (0..grid.len()).map(|i| half.beta[mirror(i)]).collect();
+    let ka = (0..grid.len()).map(|i| half.ka_dl[mirror(i)]).collect();
+    let coef = Coefficients::from_maps(grid, beta, ka, vec![0.0; grid.len()])
+        .unwrap()
+        .with_point_sources(&[
+            PointSource {
+                voxel: [6, 5, 5],
+                power: 2.0,
+            },
+            PointSource {
+                voxel: [nx - 1 - 6, 5, 5],
+                power: -2.0,
+            },
+        ])
+        .unwrap();
+    assert!(coef.signed_source);
+    assert_eq!(coef.source[grid.index(6, 5, 5)], 2.0 / 0.125);
+    let s = run(p, &coef, &RdeConfig::default().frames(300, 0));
+    let max = max_abs(&s.phi);
+    let mid = (0..grid.len())
+        .filter(|&i| grid.coords(i)[0] == nx / 2)
+        .map(|i| s.phi[i].abs())
+        .fold(0.0, f64::max);
+    let tol = if p == Precision::F64 { 1e-12 } else { 1e-5 };
+    eprintln!(
+        "F22 {p:?}: max |φ| on the midplane / max |φ| = {:.2e}",
+        mid / max
+    );
+    assert!(mid <= tol * max, "{:.3e}", mid / max);
+    assert!(s.trace.min_phi < -0.5 * max);
+    // Unsigned sources stay validated as ≥ 0.
+    let mut bad = coef.clone();
+    bad.signed_source = false;
+    assert!(matches!(
+        bad.validate(),
+        Err(SolverError::FieldValue {
+            field: "source",
+            ..
+        })
+    ));
+}
+
+/// F23: painting: the effective source is the union of the visited voxels, each counted once
+/// however often the brush passes.
+#[test]
+fn f23_painting_is_the_union_of_visited_voxels() {
+    let grid = Grid::new([8; 3], 1.0).unwrap();
+    let path = [
+        [1, 1, 1],
+        [2, 1, 1],
+        [2, 2, 1],
+        [2, 1, 1],
+        [1, 1, 1],
+        [3, 3, 3],
+    ];
+    let c = Coefficients::uniform(grid, 0.5, 0.1)
+        .unwrap()
+        .paint(&path, 1.5)
+        .unwrap();
+    let mask: Vec<usize> = (0..grid.len()).filter(|&i| c.source[i] != 0.0).collect();
+    let mut union: Vec<usize> = path.iter().map(|v| grid.index(v[0], v[1], v[2])).collect();
+    union.sort_unstable();
+    union.dedup();
+    assert_eq!(mask, union);
+    assert!(mask.iter().all(|&i| c.source[i] == 1.5));
+    assert!(matches!(
+        Coefficients::uniform(grid, 0.5, 0.1)
+            .unwrap()
+            .paint(&[[8, 0, 0]], 1.0),
+        Err(SolverError::BadParameter {
+            name: "point_source.voxel",
+            ..
+        })
+    ));
+}
+
+both!(f22_negative_source_cancels_on_the_midplane);
