@@ -122,12 +122,22 @@
 //!   f32 backends lie 1.0·10⁻⁷ from f64 (bound 10ε₃₂/(rλ₁) = 9.1·10⁻⁵); step counts to
 //!   R̄/j̄ < 10⁻⁴ agree (463, 463); 10 GPU steps equal the double-buffered CPU result to
 //!   1.1·10⁻⁷ where an in-place update differs by 9.8·10⁻² (`e19_e21_…`).
+//! * **P1 control** ([`p1`], thesis Eqs 3.23–3.26): Ka in the φ row and K′t in the E row
+//!   (`verbatim` switch for the printed Kt). A one-voxel source leaves φ and E exactly 0.0 off
+//!   their sublattices after 1, 10 and 4000 steps (f32 and f64), and the steady φ on the
+//!   source sublattice equals CDA on the coarse grid H = 2∆ to 1.3·10⁻¹⁴ (f64; `c10_…`). The
+//!   detector ([`p1::Checkerboard`]) reads off-sublattice fraction 0 and Nyquist-plane energy
+//!   0.300 for P1, 0.831 and 0.0355 for the RDE (19³; `c11_…`). The exact von Neumann bound
+//!   ([`p1::p1_critical_r`]) is 0.3626 at β = 1, α = 0.9 and 1.0 at β = 1/3; the run the
+//!   thesis's criterion admits there (r = 1.0) grows 1.9·10³× from step 30 to 60 with the row
+//!   through the source reading + 0 − 0 + …, as in thesis Fig 3.6(a) (`c12_…`).
 //! * **Typos and units** (thesis): the printed δy, δz definitions, "does vary in time" for
 //!   Qe, N/S swapped between Ch. 3 and Ch. 4 (Ch. 4's N = (i + 1, j, k) is used), and φe
 //!   "incorporating c∆t" (here q, with the c∆t = r∆ factor applied by the step).
 pub mod cpu;
 pub mod gpu;
 pub mod method;
+pub mod p1;
 
 pub use cpu::CpuRde;
 pub use gpu::GpuRde;

@@ -1149,3 +1149,222 @@ fn f23_painting_is_the_union_of_visited_voxels() {
 }
 
 both!(f22_negative_source_cancels_on_the_midplane);
+
+// ---------------------------------------------------------------------------------------
+// C. The P1 control and the checkerboard (thesis Fig 3.6(a)).
+
+mod p1_tests {
+    use super::super::p1::{Checkerboard, P1, P1Config, p1_critical_r};
+    use super::*;
+
+    /// Uniform β, α (g = 0) on a 19³ grid (17³ unknowns) with a unit point source at
+    /// (8, 8, 8): its sublattice holds the Dirichlet layer (even indices), the coarse grid is
+    /// 10³ with 8³ unknowns.
+    fn setup(beta: f64, albedo: f64) -> (Coefficients, [usize; 3]) {
+        let grid = Grid::new([19; 3], 1.0).unwrap();
+        let src = [8, 8, 8];
+        let c = Coefficients::uniform(grid, beta, (1.0 - albedo) / (3.0 * beta))
+            .unwrap()
+            .with_point_sources(&[PointSource {
+                voxel: src,
+                power: 1.0,
+            }])
+            .unwrap();
+        (c, src)
+    }
+
+    fn widen<T: Real>(v: &[T]) -> Vec<f64> {
+        v.iter().map(|x| x.f()).collect()
+    }
+
+    /// Whether voxel `c` lies on the sublattice of offsets (from `src`) with parity `par`
+    /// per axis (0 even, 1 odd).
+    fn on(c: [usize; 3], src: [usize; 3], par: [usize; 3]) -> bool {
+        (0..3).all(|a| (c[a] + src[a]) % 2 == par[a])
+    }
+
+    /// C10: after 1, 10 and 4000 steps φ is exactly 0.0 off the source's sublattice and E_j
+    /// exactly 0.0 off its own (offset odd along j, even across), bitwise in f32 and f64; the
+    /// steady source-sublattice φ equals CDA on the coarse grid H = 2∆ (β_H = β/2,
+    /// (Ka∆)_H = 2Ka∆, the same q; Dirichlet layer on the sublattice) to 10⁻¹² (f64; f32 10⁻⁵).
+    fn c10_sublattices_decouple_exactly(p: Precision) {
+        match p {
+            Precision::F64 => c10::<f64>(1e-12),
+            Precision::F32 => c10::<f32>(1e-5),
+        }
+    }
+
+    fn c10<T: Real>(tol: f64) {
+        let (beta, albedo) = (1.0 / 3.0, 0.9);
+        let (coef, src) = setup(beta, albedo);
+        let g = coef.grid;
+        let a = coef.ka_dl[0];
+        let r = 0.9 * p1_critical_r(a, 1.0 / (3.0 * beta));
+        let mut s = P1::<T>::new(&coef, P1Config { r, verbatim: false }).unwrap();
+        let mut done = 0;
+        for n in [1, 10, 4000] {
+            while done < n {
+                s.step();
+                done += 1;
+            }
+            for idx in 0..g.len() {
+                let c = g.coords(idx);
+                if !on(c, src, [0, 0, 0]) {
+                    assert!(s.phi[idx] == T::zero(), "step {n}: φ{c:?} = {}", s.phi[idx]);
+                }
+                for axis in 0..3 {
+                    let mut par = [0; 3];
+                    par[axis] = 1;
+                    if !on(c, src, par) {
+                        assert!(s.e[axis][idx] == T::zero(), "step {n}: E{axis}{c:?}");
+                    }
+                }
+            }
+        }
+        let phi = widen(&s.phi);
+        assert!(phi.iter().any(|v| *v > 0.0));
+        // Coarse CDA (the conservative RDE's steady state) on the even sublattice.
+        let cg = Grid::new([10; 3], 2.0).unwrap();
+        let mut q = vec![0.0; cg.len()];
+        q[cg.index(4, 4, 4)] = coef.source[g.index(8, 8, 8)];
+        let coarse =
+            Coefficients::from_maps(cg, vec![beta / 2.0; cg.len()], vec![2.0 * a; cg.len()], q)
+                .unwrap();
+        let cs = run(
+            Precision::F64,
+            &coarse,
+            &RdeConfig::default().steady(1e-13, 100_000),
+        );
+        assert!(cs.converged());
+        let fine_on_coarse: Vec<f64> = (0..cg.len())
+            .map(|ci| {
+                let [i, j, k] = cg.coords(ci);
+                phi[g.index(2 * i, 2 * j, 2 * k)]
+            })
+            .collect();
+        let e = rel_max(&fine_on_coarse, &cs.phi);
+        eprintln!(
+            "C10 {}: P1 source sublattice vs coarse CDA {e:.2e} (r = {r:.4})",
+            T::NAME
+        );
+        assert!(e <= tol, "{e:.3e}");
+    }
+
+    /// C11: the detector flags P1 (off-sublattice fraction 0, Nyquist-plane energy above 0.1)
+    /// and passes the RDE on the same medium (off-sublattice above 0.5, Nyquist below 0.1).
+    /// The spec's 2D thresholds (0.05, 0.01 on Nyquist *lines* at 64²) do not carry over to
+    /// the union of three Nyquist planes at 19³: the RDE's point source puts 0.0355 there.
+    fn c11_detector_flags_p1_and_passes_rde(p: Precision) {
+        let (coef, src) = setup(1.0 / 3.0, 0.9);
+        let g = coef.grid;
+        let a = coef.ka_dl[0];
+        let r = 0.9 * p1_critical_r(a, 1.0);
+        let phi = match p {
+            Precision::F64 => {
+                let mut s = P1::<f64>::new(&coef, P1Config { r, verbatim: false }).unwrap();
+                (0..2000).for_each(|_| s.step());
+                s.phi
+            }
+            Precision::F32 => {
+                let mut s = P1::<f32>::new(&coef, P1Config { r, verbatim: false }).unwrap();
+                (0..2000).for_each(|_| s.step());
+                widen(&s.phi)
+            }
+        };
+        let p1 = Checkerboard::measure(&g, &phi, src);
+        let rde = run(p, &coef, &RdeConfig::default().steady(tight(p), 100_000));
+        let d = Checkerboard::measure(&g, &rde.phi, src);
+        eprintln!(
+            "C11 {p:?}: P1 off-sublattice {:.3}, Nyquist {:.4}; RDE off-sublattice {:.3}, Nyquist {:.4}",
+            p1.off_sublattice, p1.nyquist, d.off_sublattice, d.nyquist
+        );
+        assert!(p1.off_sublattice == 0.0 && p1.nyquist > 0.1, "{p1:?}");
+        assert!(p1.is_checkerboard());
+        assert!(d.off_sublattice > 0.5 && d.nyquist < 0.1, "{d:?}");
+        assert!(!d.is_checkerboard());
+    }
+
+    /// C12: the run the thesis's P1 criterion (Kt c∆t, c∆t/(2∆)) < (1, 1) admits but the exact
+    /// bound does not (β = 1, α = 0.9, r = 1.0) grows more than 100× between steps 30 and 60,
+    /// with the row through the source reading + 0 − 0 + …; at 0.9 of the exact bound the run
+    /// settles (its last step changes φ by less than 10⁻⁸ of max φ after 4000 steps).
+    fn c12_admitted_unstable_p1_diverges(p: Precision) {
+        let (coef, src) = setup(1.0, 0.9);
+        let g = coef.grid;
+        let (a, b) = (coef.ka_dl[0], 1.0 / 3.0);
+        let rc = p1_critical_r(a, b);
+        eprintln!("C12: exact P1 bound at β = 1, α = 0.9: r_crit = {rc:.4}");
+        assert!(rc < 1.0 && b * 1.0 < 1.0);
+        let mut s = P1::<f64>::new(
+            &coef,
+            P1Config {
+                r: 1.0,
+                verbatim: false,
+            },
+        )
+        .unwrap();
+        let mut n30 = 0.0;
+        for n in 1..=60 {
+            s.step();
+            if n == 30 {
+                n30 = max_abs(&s.phi);
+            }
+        }
+        let n60 = max_abs(&s.phi);
+        eprintln!("C12: r = 1.0: max|φ| {n30:.3e} (30 steps) → {n60:.3e} (60 steps)");
+        assert!(n60 > 100.0 * n30);
+        let row: Vec<f64> = (src[0]..g.n[0] - 1)
+            .map(|i| s.phi[g.index(i, src[1], src[2])])
+            .collect();
+        for (m, v) in row.iter().enumerate() {
+            if m % 2 == 1 {
+                assert_eq!(*v, 0.0, "offset {m}");
+            }
+        }
+        for m in (0..row.len() - 2).step_by(2) {
+            assert!(row[m] * row[m + 2] < 0.0, "offsets {m}, {}: {row:?}", m + 2);
+        }
+        let stable = |steps: usize| -> (Vec<f64>, Vec<f64>) {
+            match p {
+                Precision::F64 => {
+                    let mut s = P1::<f64>::new(
+                        &coef,
+                        P1Config {
+                            r: 0.9 * rc,
+                            verbatim: false,
+                        },
+                    )
+                    .unwrap();
+                    (0..steps).for_each(|_| s.step());
+                    let before = s.phi.clone();
+                    s.step();
+                    (before, s.phi)
+                }
+                Precision::F32 => {
+                    let mut s = P1::<f32>::new(
+                        &coef,
+                        P1Config {
+                            r: 0.9 * rc,
+                            verbatim: false,
+                        },
+                    )
+                    .unwrap();
+                    (0..steps).for_each(|_| s.step());
+                    let before = widen(&s.phi);
+                    s.step();
+                    (before, widen(&s.phi))
+                }
+            }
+        };
+        let (before, after) = stable(4000);
+        let change = rel_max(&after, &before);
+        let tol = if p == Precision::F64 { 1e-8 } else { 1e-5 };
+        assert!(change < tol, "0.9 r_crit: change {change:.3e}");
+    }
+
+    both!(
+        c10_sublattices_decouple_exactly,
+        c11_detector_flags_p1_and_passes_rde,
+        c12_admitted_unstable_p1_diverges,
+    );
+}
