@@ -6,7 +6,10 @@
 //! and writes the other, so the update is exactly the explicit map φⁿ⁺¹ = φⁿ + r B(φⁿ)
 //! whatever the order of the voxels or the number of threads. Per voxel and step it reads
 //! φ (7 values, the neighbours from cached rows), β (7), a, s and writes φ: five streams,
-//! 20 bytes per voxel in `f32`.
+//! 20 bytes per voxel in `f32`. Measured at 128³ f32 on this project's 2 shared cores:
+//! 2.5 ms per step (16.6 GB/s of the counted traffic), 2.9 ms with the residual (the squared
+//! brackets go to a row scratch and are summed in eight fixed lanes afterwards; summing them
+//! inside the update loop cost 8.5 ms).
 //!
 //! With the solve's fields in normalised units (q/j̄), grid units ∆ = 1 in the bracket:
 //! B_p = s_p − a_p φ_p + L(φ)_p, s = ∆q/j̄, and R_p = B_p/∆ is FLD Eq 37's residual
@@ -313,6 +316,7 @@ impl<T: Real> CpuRde<T> {
                 let km = if k == 0 { 0 } else { k - 1 };
                 let kp = (k + 1).min(nz - 1);
                 let mut acc = 0.0;
+                let mut scratch = if RES { vec![T::zero(); nx] } else { Vec::new() };
                 let (j0, j1) = if neumann { (0, ny) } else { (1, ny - 1) };
                 for j in j0..j1 {
                     let jm = if j == 0 { 0 } else { j - 1 };
@@ -336,6 +340,7 @@ impl<T: Real> CpuRde<T> {
                         nx,
                         neumann,
                         counted,
+                        &mut scratch,
                     );
                 }
                 acc
@@ -389,6 +394,7 @@ fn row<T: Real, const OP: u8, const LOCAL: bool, const RES: bool>(
     nx: usize,
     neumann: bool,
     counted: std::ops::Range<usize>,
+    scratch: &mut [T],
 ) -> f64 {
     let [c, ym, yp, zm, zp] = rows;
     let phi = f.phi;
@@ -461,7 +467,7 @@ fn row<T: Real, const OP: u8, const LOCAL: bool, const RES: bool>(
         counted.start.saturating_sub(1).min(len),
         counted.end.saturating_sub(1).min(len),
     );
-    let mut lanes = [T::zero(); 8];
+    let scratch: &mut [T] = if RES { &mut scratch[..len] } else { &mut [] };
     for q in 0..len {
         let b = bracket::<T, OP>(
             p[q],
@@ -474,17 +480,22 @@ fn row<T: Real, const OP: u8, const LOCAL: bool, const RES: bool>(
         let r = if LOCAL { rl[q] } else { f.r };
         o[q] = p[q] + r * b;
         if RES {
-            let w = if q >= c_lo && q < c_hi {
-                T::one()
-            } else {
-                T::zero()
-            };
-            lanes[q % 8] = lanes[q % 8] + w * b * b;
+            scratch[q] = b;
         }
     }
-    if RES {
-        // Lanes in a fixed order: deterministic for any thread count.
-        acc += lanes.iter().map(|x| x.f()).sum::<f64>();
+    if RES && c_hi > c_lo {
+        // Eight partial sums in a fixed order: deterministic for any thread count, and the
+        // loop above stays vectorisable.
+        let mut lanes = [T::zero(); 8];
+        let chunks = scratch[c_lo..c_hi].chunks_exact(8);
+        let tail = chunks.remainder();
+        for c in chunks {
+            for (l, &v) in lanes.iter_mut().zip(c) {
+                *l = *l + v * v;
+            }
+        }
+        acc += lanes.iter().map(|x| x.f()).sum::<f64>()
+            + tail.iter().map(|x| x.f() * x.f()).sum::<f64>();
     }
     acc
 }

@@ -243,7 +243,7 @@ impl<'a> GpuRde<'a> {
 
     /// Bytes one step moves at least (as [`CpuRde::bytes_per_step`] in f32).
     pub fn bytes_per_step(&self) -> usize {
-        5 * self.grid.len() * 4
+        (if self.trace.local { 6 } else { 5 }) * self.grid.len() * 4
     }
 
     /// Records `n` plain steps into the caller's `pass` (one dispatch each, alternating the

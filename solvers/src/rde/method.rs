@@ -133,8 +133,14 @@ impl Method for RdeMethod {
     }
 
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {
-        // φ read and written, β, a, s read: 5 values per voxel (as `CpuRde::bytes_per_step`).
-        5 * grid.len() * precision.bytes()
+        // φ read and written, β, a, s read (and r_p with the local step): 5 or 6 values per
+        // voxel, as `CpuRde::bytes_per_step`.
+        let words = if matches!(self.config.time_step, TimeStep::Local { .. }) {
+            6
+        } else {
+            5
+        };
+        words * grid.len() * precision.bytes()
     }
 }
 
