@@ -1,19 +1,23 @@
 //! The steady RDE behind the [`Method`] interface: the registry entry `rde[:operator]`.
 //!
 //! The method runs the FTCS of [`crate::rde`] to its steady state on the problem's medium:
-//! β = 1/(3σt∆) capped at [`super::BETA_MAX`] (g = 0, as the thesis fixes in Ch. 4, and as
-//! CDA scatters isotropically with σs as given), a = (1 − α)σt∆, source q = the problem's
-//! emission, φ = 0 on the outermost layer (as CDA). It steps with the default r = 0.9 r_G.
+//! β = 1/(3σt∆) (g = 0, as the thesis fixes in Ch. 4 and as CDA scatters isotropically with
+//! σs as given), a = (1 − α)σt∆, source q = the problem's emission, φ = 0 on the outermost
+//! layer (as CDA). **Defaults** (a decision measured in the module docs of [`crate::rde`],
+//! "β cap"): β capped at CDA's 1/(3σ_ε∆) ([`cda_beta_cap`]) instead of the thesis's 1, and
+//! the local step r_p = 0.9/(a_p + Σβ_ps) (damped Jacobi), so the steady state is CDA's
+//! system; `local=0` gives one global r = safety·r_G and `beta_max=1` the thesis's range.
 //!
-//! **Tolerance.** It stops when R̄/j̄ < [`Tolerance::rel`], with R_p = (φⁿ⁺¹_p − φⁿ_p)/(c∆t),
-//! which is FLD Eq 37's residual of the same linear system CDA solves (the RMS over the same
-//! interior window, normalised by the same j̄; code shared with [`crate::fld`]): at one `rel`
-//! CDA and RDE stop at the same residual of the same discrete equation. `rel` = 0 runs
-//! exactly `max_steps` steps.
+//! **Tolerance.** It stops when R̄/j̄ < [`Tolerance::rel`], with R_p = (φⁿ⁺¹_p − φⁿ_p)/(c∆t)
+//! (with the local step, (φⁿ⁺¹_p − φⁿ_p)/(c∆t_p)), which is FLD Eq 37's residual of the same
+//! linear system CDA solves (the RMS over the same interior window, normalised by the same
+//! j̄; code shared with [`crate::fld`]): at one `rel` CDA and RDE stop at the same residual of
+//! the same discrete equation. `rel` = 0 runs exactly `max_steps` steps.
 //!
 //! Variants: `conservative` (default), `expanded` (thesis Eq 4.8, sign fixed), `verbatim`
-//! (thesis Eq 4.8 as printed; reproduction only). Parameters: `safety` (the factor on r_G)
-//! and `r` (a fixed r = c∆t/∆, checked against r_G).
+//! (thesis Eq 4.8 as printed; reproduction only, never in the atlas, which takes each
+//! family's default). Parameters: `local`, `safety`, `r` (a fixed r = c∆t/∆, checked against
+//! r_G) and `beta_max`.
 
 use super::{Coefficients, Operator, RdeConfig, Run, TimeStep};
 use crate::method::{
