@@ -131,10 +131,15 @@
 //!   ([`p1::p1_critical_r`]) is 0.3626 at β = 1, α = 0.9 and 1.0 at β = 1/3; the run the
 //!   thesis's criterion admits there (r = 1.0) grows 1.9·10³× from step 30 to 60 with the row
 //!   through the source reading + 0 − 0 + …, as in thesis Fig 3.6(a) (`c12_…`).
+//! * **FE control** ([`fe`], thesis Eqs 3.16–3.22): on a uniform field the Jacobi iteration
+//!   multiplies by exactly −5/4 (2D) and −19/8 (3D) for Kt∆ ∈ {1, 10, 100}; from a random
+//!   start on a periodic 6³ grid it grows 2.475× (Kt∆ = 1) and 21.7× (Kt∆ = 0.1) per
+//!   iteration (`c13_…`), the sign alternation of thesis Fig 3.5.
 //! * **Typos and units** (thesis): the printed δy, δz definitions, "does vary in time" for
 //!   Qe, N/S swapped between Ch. 3 and Ch. 4 (Ch. 4's N = (i + 1, j, k) is used), and φe
 //!   "incorporating c∆t" (here q, with the c∆t = r∆ factor applied by the step).
 pub mod cpu;
+pub mod fe;
 pub mod gpu;
 pub mod method;
 pub mod p1;

@@ -1368,3 +1368,65 @@ mod p1_tests {
         c12_admitted_unstable_p1_diverges,
     );
 }
+
+mod fe_tests {
+    use super::super::fe::FeJacobi;
+    use super::*;
+
+    /// C13: thesis Eq 3.22's Jacobi iteration flips a uniform field's sign and multiplies it by
+    /// exactly 5/4 (2D) and 19/8 (3D) per iteration, for Kt∆ ∈ {1, 10, 100} (to 10⁻¹² f64,
+    /// 10⁻⁵ f32); a random start grows at least as fast (spectral radius ≥ 19/8 in 3D).
+    fn c13_fe_jacobi_diverges_with_sign_flips(p: Precision) {
+        match p {
+            Precision::F64 => c13::<f64>(1e-12),
+            Precision::F32 => c13::<f32>(1e-5),
+        }
+    }
+
+    fn c13<T: Real>(tol: f64) {
+        for (dims, factor) in [(2, -1.25f64), (3, -19.0 / 8.0)] {
+            for kt in [1.0, 10.0, 100.0] {
+                let init = [1.0, 0.3, -0.2, 0.7];
+                let mut s = FeJacobi::<T>::new(dims, 6, kt, |c, _| init[c]);
+                for it in 1..=4 {
+                    s.iterate();
+                    let expect = factor.powi(it);
+                    for (c, field) in s.x.iter().enumerate() {
+                        for v in field {
+                            let e = (v.f() / (init[c] * expect) - 1.0).abs();
+                            assert!(e < tol, "{dims}D Kt∆ = {kt} it {it} comp {c}: {e:.3e}");
+                        }
+                    }
+                }
+            }
+        }
+        for kt in [0.1, 1.0] {
+            let mut rng = SplitMix64::new(5);
+            let vals: Vec<f64> = (0..4 * 216).map(|_| rng.next_f64() - 0.5).collect();
+            let mut s = FeJacobi::<T>::new(3, 6, kt, |c, i| vals[c * 216 + i]);
+            let norm = |s: &FeJacobi<T>| {
+                s.x.iter()
+                    .flatten()
+                    .map(|v| v.f() * v.f())
+                    .sum::<f64>()
+                    .sqrt()
+            };
+            let mut rho = 0.0;
+            for _ in 0..40 {
+                let before = norm(&s);
+                s.iterate();
+                rho = norm(&s) / before;
+                // Renormalised (power iteration) so that f32 does not overflow.
+                let scale = T::c(1.0 / norm(&s));
+                s.x.iter_mut().flatten().for_each(|v| *v = *v * scale);
+            }
+            eprintln!(
+                "C13 {}: 3D Kt∆ = {kt}: growth per iteration {rho:.3}",
+                T::NAME
+            );
+            assert!(rho >= 19.0 / 8.0 * (1.0 - 1e-6), "Kt∆ = {kt}: {rho}");
+        }
+    }
+
+    both!(c13_fe_jacobi_diverges_with_sign_flips);
+}
