@@ -130,7 +130,11 @@
 //!   0.300 for P1, 0.831 and 0.0355 for the RDE (19³; `c11_…`). The exact von Neumann bound
 //!   ([`p1::p1_critical_r`]) is 0.3626 at β = 1, α = 0.9 and 1.0 at β = 1/3; the run the
 //!   thesis's criterion admits there (r = 1.0) grows 1.9·10³× from step 30 to 60 with the row
-//!   through the source reading + 0 − 0 + …, as in thesis Fig 3.6(a) (`c12_…`).
+//!   through the source reading + 0 − 0 + …, as in thesis Fig 3.6(a) (`c12_…`). The
+//!   Fig 3.6(b) control ([`p1::P1Stencil::Sobel`], weights (1, 2, 1)/4 across each
+//!   difference, our choice: the thesis gives none) couples the sublattices (off-sublattice
+//!   0.707) but keeps Nyquist-plane energy 0.244 and negative lobes (min/max φ = −0.133), so
+//!   the detector still flags it (`c11_…`).
 //! * **FE control** ([`fe`], thesis Eqs 3.16–3.22): on a uniform field the Jacobi iteration
 //!   multiplies by exactly −5/4 (2D) and −19/8 (3D) for Kt∆ ∈ {1, 10, 100}; from a random
 //!   start on a periodic 6³ grid it grows 2.475× (Kt∆ = 1) and 21.7× (Kt∆ = 0.1) per

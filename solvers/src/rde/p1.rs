@@ -25,6 +25,20 @@ pub struct P1Config {
     pub r: f64,
     /// Kt∆ in the φ row as printed (thesis Eq 3.25) instead of Ka∆.
     pub verbatim: bool,
+    /// The difference stencil.
+    pub stencil: P1Stencil,
+}
+
+/// The central difference δ_j of the P1 control.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum P1Stencil {
+    /// f_{+1} − f_{−1} along j (thesis Eq 3.26).
+    #[default]
+    Central,
+    /// Thesis Fig 3.6(b)'s "direct and diagonal neighbours", whose weights the thesis does not
+    /// give: the same difference smoothed across the other two axes with Sobel weights
+    /// (1, 2, 1)/4 each (our documented choice, spec §4 item 17).
+    Sobel,
 }
 
 /// The P1 state: φ and the three components of E, natural layout.
@@ -84,6 +98,7 @@ impl<T: Real> P1<T> {
     }
 
     /// One FTCS step of thesis Eq 3.26 (both rows from the old state).
+    #[allow(clippy::needless_range_loop)] // the axis indexes E, the strides and the stencil
     pub fn step(&mut self) {
         let g = self.coef.grid;
         let [nx, ny, _] = g.n;
@@ -92,15 +107,33 @@ impl<T: Real> P1<T> {
         let (half, sixth) = (T::c(0.5), T::c(1.0 / 6.0));
         let mut phi = self.phi.clone();
         let mut e = self.e.clone();
+        let sobel = self.cfg.stencil == P1Stencil::Sobel;
+        let w = [T::c(0.25), T::c(0.5), T::c(0.25)];
+        // δ along `axis` of field `f` at `idx` (Sobel: smoothed across the other axes).
+        let delta = |f: &[T], idx: usize, axis: usize| -> T {
+            let st = stride[axis];
+            if !sobel {
+                return f[idx + st] - f[idx - st];
+            }
+            let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+            let mut acc = T::zero();
+            for (da, wa) in w.iter().enumerate() {
+                for (db, wb) in w.iter().enumerate() {
+                    let q = (idx + da * stride[a] + db * stride[b]) - stride[a] - stride[b];
+                    acc = acc + *wa * *wb * (f[q + st] - f[q - st]);
+                }
+            }
+            acc
+        };
         for idx in 0..g.len() {
             let [i, j, k] = g.coords(idx);
             if g.is_boundary(i, j, k) {
                 continue;
             }
             let mut div = T::zero();
-            for (axis, &st) in stride.iter().enumerate() {
-                div = div + (self.e[axis][idx + st] - self.e[axis][idx - st]);
-                let grad = self.phi[idx + st] - self.phi[idx - st];
+            for axis in 0..3 {
+                div = div + delta(&self.e[axis], idx, axis);
+                let grad = delta(&self.phi, idx, axis);
                 e[axis][idx] = (T::one() - r * self.b[idx]) * self.e[axis][idx] - r * sixth * grad;
             }
             phi[idx] =

@@ -1154,7 +1154,7 @@ both!(f22_negative_source_cancels_on_the_midplane);
 // C. The P1 control and the checkerboard (thesis Fig 3.6(a)).
 
 mod p1_tests {
-    use super::super::p1::{Checkerboard, P1, P1Config, p1_critical_r};
+    use super::super::p1::{Checkerboard, P1, P1Config, P1Stencil, p1_critical_r};
     use super::*;
 
     /// Uniform β, α (g = 0) on a 19³ grid (17³ unknowns) with a unit point source at
@@ -1200,7 +1200,15 @@ mod p1_tests {
         let g = coef.grid;
         let a = coef.ka_dl[0];
         let r = 0.9 * p1_critical_r(a, 1.0 / (3.0 * beta));
-        let mut s = P1::<T>::new(&coef, P1Config { r, verbatim: false }).unwrap();
+        let mut s = P1::<T>::new(
+            &coef,
+            P1Config {
+                r,
+                verbatim: false,
+                stencil: P1Stencil::Central,
+            },
+        )
+        .unwrap();
         let mut done = 0;
         for n in [1, 10, 4000] {
             while done < n {
@@ -1261,12 +1269,28 @@ mod p1_tests {
         let r = 0.9 * p1_critical_r(a, 1.0);
         let phi = match p {
             Precision::F64 => {
-                let mut s = P1::<f64>::new(&coef, P1Config { r, verbatim: false }).unwrap();
+                let mut s = P1::<f64>::new(
+                    &coef,
+                    P1Config {
+                        r,
+                        verbatim: false,
+                        stencil: P1Stencil::Central,
+                    },
+                )
+                .unwrap();
                 (0..2000).for_each(|_| s.step());
                 s.phi
             }
             Precision::F32 => {
-                let mut s = P1::<f32>::new(&coef, P1Config { r, verbatim: false }).unwrap();
+                let mut s = P1::<f32>::new(
+                    &coef,
+                    P1Config {
+                        r,
+                        verbatim: false,
+                        stencil: P1Stencil::Central,
+                    },
+                )
+                .unwrap();
                 (0..2000).for_each(|_| s.step());
                 widen(&s.phi)
             }
@@ -1282,6 +1306,32 @@ mod p1_tests {
         assert!(p1.is_checkerboard());
         assert!(d.off_sublattice > 0.5 && d.nyquist < 0.1, "{d:?}");
         assert!(!d.is_checkerboard());
+        // Thesis Fig 3.6(b): the Sobel-weighted stencil couples the sublattices but keeps
+        // energy on the Nyquist planes (axis-aligned alternation).
+        let mut s = P1::<f64>::new(
+            &coef,
+            P1Config {
+                r: 0.5 * r,
+                verbatim: false,
+                stencil: P1Stencil::Sobel,
+            },
+        )
+        .unwrap();
+        (0..2000).for_each(|_| s.step());
+        let sob = Checkerboard::measure(&g, &s.phi, src);
+        let min = s.phi.iter().cloned().fold(f64::INFINITY, f64::min);
+        eprintln!(
+            "C11 Sobel: off-sublattice {:.3}, Nyquist {:.4}, min/max φ {:.3}",
+            sob.off_sublattice,
+            sob.nyquist,
+            min / max_abs(&s.phi)
+        );
+        assert!(sob.off_sublattice > 0.3, "{sob:?}");
+        assert!(sob.nyquist > d.nyquist && sob.is_checkerboard(), "{sob:?}");
+        assert!(
+            min < 0.0,
+            "the Sobel control's axis-aligned alternation: min φ {min}"
+        );
     }
 
     /// C12: the run the thesis's P1 criterion (Kt c∆t, c∆t/(2∆)) < (1, 1) admits but the exact
@@ -1300,6 +1350,7 @@ mod p1_tests {
             P1Config {
                 r: 1.0,
                 verbatim: false,
+                stencil: P1Stencil::Central,
             },
         )
         .unwrap();
@@ -1332,6 +1383,7 @@ mod p1_tests {
                         P1Config {
                             r: 0.9 * rc,
                             verbatim: false,
+                            stencil: P1Stencil::Central,
                         },
                     )
                     .unwrap();
@@ -1346,6 +1398,7 @@ mod p1_tests {
                         P1Config {
                             r: 0.9 * rc,
                             verbatim: false,
+                            stencil: P1Stencil::Central,
                         },
                     )
                     .unwrap();
