@@ -99,7 +99,9 @@
 //!   φ < 0 allowed): mirrored about the midplane of a mirrored medium it gives φ = 0 there
 //!   exactly (0.0 in f32 and f64; `f22_…`). Painting (thesis Fig 4.8) makes every visited
 //!   voxel a source once: the union of the path (`f23_…`). The thesis's limit of 8 sources is
-//!   a UI limit and not enforced. Forcing (re-injecting received energy) is not implemented.
+//!   a UI limit and not enforced. Forcing ([`Coefficients::force`]) turns the voxels that
+//!   reached a fraction of max φ into an extended source (our reading of §4.2.5, which gives
+//!   no rule); it changes the converged field, as the thesis says (`f24_…`).
 //! * **Transient.** A unit pulse (β = 0.5, a = 0.01, 65³) keeps Σφ = (1 − ra)ⁿ to 4·10⁻⁹ and
 //!   matches (4πβτ)^{−3/2}e^{−R²/(4βτ)}(1 − ra)ⁿ, τ = nr, to 3.7·10⁻³ (r = 0.1) and 6.7·10⁻³
 //!   (r = 0.3) relative L2 beyond 2 voxels (`d15_…`); the discrete decay (1 − ra)ⁿ is used,
@@ -580,6 +582,46 @@ impl Coefficients {
         }
         self.signed_source |= q < 0.0;
         Ok(self)
+    }
+
+    /// Forcing (thesis §4.2.5, "Forcing the Diffusion"): every voxel where the current field
+    /// `phi` has reached `fraction` of its maximum becomes an extended source of density `q`
+    /// (added once), to speed the spread up; the converged result changes, as the thesis
+    /// notes. Returns the number of voxels converted. Continue from `phi` with
+    /// [`Coefficients::with_initial`].
+    pub fn force(&mut self, phi: &[f64], fraction: f64, q: f64) -> Result<usize, SolverError> {
+        if phi.len() != self.grid.len() {
+            return Err(SolverError::FieldSize {
+                field: "phi",
+                expected: self.grid.len(),
+                got: phi.len(),
+            });
+        }
+        if !(fraction > 0.0 && fraction <= 1.0) {
+            return Err(SolverError::BadParameter {
+                name: "force.fraction",
+                value: fraction,
+                reason: "must be in (0, 1]",
+            });
+        }
+        if !(q.is_finite() && q >= 0.0) {
+            return Err(SolverError::BadParameter {
+                name: "force.q",
+                value: q,
+                reason: "must be finite and ≥ 0",
+            });
+        }
+        let max = phi.iter().fold(0.0f64, |m, x| m.max(*x));
+        let mut n = 0;
+        if max > 0.0 {
+            for (s, &v) in self.source.iter_mut().zip(phi) {
+                if v >= fraction * max {
+                    *s += q;
+                    n += 1;
+                }
+            }
+        }
+        Ok(n)
     }
 
     fn voxel_index(&self, v: [usize; 3]) -> Result<usize, SolverError> {

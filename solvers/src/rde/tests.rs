@@ -1483,3 +1483,24 @@ mod fe_tests {
 
     both!(c13_fe_jacobi_diverges_with_sign_flips);
 }
+
+/// F24: forcing after 100 steps (voxels at ≥ 10 % of max φ become sources of the original
+/// source's density) changes the converged field by more than 1 % and keeps it finite.
+fn f24_forcing_changes_the_converged_field(p: Precision) {
+    let (_, coef) = homogeneous(17, 0.5, 0.9);
+    let steady = RdeConfig::default().steady(tight(p), 100_000);
+    let plain = run(p, &coef, &steady);
+    let early = run(p, &coef, &RdeConfig::default().frames(100, 0)).phi;
+    let mut forced = coef.clone();
+    let q = coef.source.iter().cloned().fold(0.0, f64::max);
+    let n = forced.force(&early, 0.1, q).unwrap();
+    assert!(n > 1, "{n} voxels forced");
+    let forced = forced.with_initial(early);
+    let s = run(p, &forced, &steady);
+    assert!(s.converged() && s.phi.iter().all(|x| x.is_finite()));
+    let d = rel_l2(&s.phi, &plain.phi);
+    eprintln!("F24 {p:?}: {n} voxels forced, converged field differs by {d:.3e} (L2)");
+    assert!(d > 1e-2, "{d:.3e}");
+}
+
+both!(f24_forcing_changes_the_converged_field);
