@@ -44,6 +44,40 @@ use std::time::Instant;
 pub const DEFAULT_SCENES: &str =
     "scenes/nebula.toml,scenes/emissive_cloud.toml,scenes/shell_core.toml,scenes/plume.toml";
 
+/// The help of `--coarsen`, word for word the same in `accuracy_cost` and `renderings`.
+pub const COARSEN_HELP: &str = "Coarsen every scene's medium by this factor first (conservative restriction; the reference sees the same coarsened scene); 1 means no coarsening. Default 1 (2 with --quick)";
+
+/// The `--coarsen` factor of `accuracy_cost` and `renderings`: the flag's value, or 1 (2
+/// with `--quick`); 0 is an error (it means no factor at all, not "no coarsening").
+pub fn coarsen_factor(flag: Option<usize>, quick: bool) -> Result<usize> {
+    match flag {
+        Some(0) => bail!("--coarsen must be ≥ 1; 1 means no coarsening"),
+        Some(c) => Ok(c),
+        None => Ok(if quick { 2 } else { 1 }),
+    }
+}
+
+/// The scene files of a `--scenes` flag of `accuracy_cost` and `renderings`. A list given
+/// on the command line is taken as typed: relative paths are from the current directory,
+/// and an error about one shows it as typed. Without the flag, `default`, whose relative
+/// paths are taken from the workspace root when the current directory does not have them
+/// ([`scene_paths`]), so the defaults work from anywhere.
+pub fn scene_files(flag: Option<&str>, default: &str) -> Result<Vec<std::path::PathBuf>> {
+    let Some(list) = flag else {
+        return scene_paths(default);
+    };
+    let v: Vec<std::path::PathBuf> = list
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(std::path::PathBuf::from)
+        .collect();
+    if v.is_empty() {
+        bail!("--scenes: no scene files given");
+    }
+    Ok(v)
+}
+
 /// Error targets of `fastest.csv`.
 pub const TARGETS: [f64; 3] = [0.05, 0.02, 0.01];
 
@@ -57,11 +91,13 @@ pub struct Args {
     /// Shared backend flag (grid methods run on each; the path tracer on the CPU).
     #[command(flatten)]
     pub backend: BackendArgs,
-    /// Scene files, comma-separated.
-    #[arg(long, default_value = DEFAULT_SCENES)]
-    pub scenes: String,
-    /// Samples per pixel of the reference (default 4096; 256 with --quick).
+    /// Scene files, comma-separated; relative paths are from the current directory.
+    /// Default: the atlas's datasets, scenes/nebula.toml, scenes/emissive_cloud.toml,
+    /// scenes/shell_core.toml and scenes/plume.toml of the workspace.
     #[arg(long)]
+    pub scenes: Option<String>,
+    /// Samples per pixel of the reference (default 4096; 256 with --quick).
+    #[arg(long, value_parser = crate::common::count_u32)]
     pub reference_spp: Option<u32>,
     /// Samples per pixel of the path tracer's own points, each ≥ 16 (default
     /// 16,64,256,1024,2048; 16,32 with --quick).
@@ -70,9 +106,8 @@ pub struct Args {
     /// Methods to run (names from the registry, comma-separated; default all).
     #[arg(long)]
     pub methods: Option<String>,
-    /// Coarsen every scene's medium by this factor first (conservative restriction; the
-    /// reference sees the same coarsened scene). Default 1 (2 with --quick).
-    #[arg(long)]
+    /// Coarsening factor of the scenes' media (see [`COARSEN_HELP`]).
+    #[arg(long, help = COARSEN_HELP, allow_negative_numbers = true)]
     pub coarsen: Option<usize>,
     /// Override the camera resolution, `W,H` (default: the scene's; 24,24 with --quick).
     #[arg(long)]
@@ -435,10 +470,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             reference::pathtracer::MIN_BATCHES
         );
     }
-    let coarsen = args.coarsen.unwrap_or(if quick { 2 } else { 1 });
-    if coarsen == 0 {
-        bail!("--coarsen must be at least 1");
-    }
+    let coarsen = coarsen_factor(args.coarsen, quick)?;
     let resolution = match &args.resolution {
         Some(s) => Some(parse_resolution(s)?),
         None if quick => Some([24, 24]),
@@ -457,7 +489,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         .map(MethodEntry::from)
         .collect(),
     };
-    let scenes = scene_paths(&args.scenes)?;
+    let scenes = scene_files(args.scenes.as_deref(), DEFAULT_SCENES)?;
     let backends = args.backend.open()?;
     let params = serde_json::json!({
         "scenes": scenes, "reference_spp": ref_spp, "spp": spp, "coarsen": coarsen,
@@ -465,15 +497,48 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         "methods": methods.iter().map(|m| m.name.clone()).collect::<Vec<_>>(),
         "targets": TARGETS,
     });
+    let mut prepared = scenes
+        .iter()
+        .map(|p| load(p, coarsen, resolution))
+        .collect::<Result<Vec<_>>>()?;
+    let mut work = crate::cost::Estimate::new();
+    for scene in &prepared {
+        work.add(
+            format!("{}: the reference, {ref_spp} spp", scene.name),
+            crate::cost::pt_render(&scene.channels, &scene.effects, ref_spp),
+        );
+        for m in &methods {
+            for st in m.settings(quick, &spp) {
+                let backends_run = backends
+                    .list(st.precision)
+                    .iter()
+                    .filter(|b| m.renderer.supports(b, st.precision))
+                    .count() as f64;
+                let one = match &m.renderer {
+                    Renderer::PathTracer => {
+                        crate::cost::pt_render(&scene.channels, &scene.effects, st.spp)
+                    }
+                    Renderer::Pipeline(r) => crate::cost::pipeline_render(
+                        &scene.channels,
+                        &grid_config(r, st.downsample, st.tolerance),
+                    ),
+                };
+                work.add(
+                    format!("{}: {} [{}]", scene.name, m.name, st.label),
+                    one * backends_run,
+                );
+            }
+        }
+    }
+    ctx.work(&work)?;
     ctx.start(params)?;
     let out = ctx;
     out.record("backends", backends.meta());
 
     let mut points = Vec::new();
     let mut refs = Vec::new();
-    for path in &scenes {
-        let mut scene = load(path, coarsen, resolution)?;
-        render_reference(&mut scene, ref_spp, args.seed)?;
+    for scene in &mut prepared {
+        render_reference(scene, ref_spp, args.seed)?;
         out.timing(format!("{}/reference", scene.name), scene.reference_seconds);
         let noise = scene.noise();
         refs.push(ReferenceRow {
@@ -498,13 +563,13 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         let bar = progress(jobs.len() as u64, &args.common, &scene.name);
         for (m, s, b) in &jobs {
             let job = Job {
-                scene: &scene,
+                scene,
                 setting: s,
                 backend: b,
                 seed: args.seed + 1000,
             };
             let r = m.run(&job)?;
-            let (error, debiased, single, multiple) = errors(&scene, &r.images);
+            let (error, debiased, single, multiple) = errors(scene, &r.images);
             points.push(Point {
                 scene: scene.name.clone(),
                 method: m.name.clone(),
@@ -644,7 +709,7 @@ impl Experiment for AccuracyCost {
             Promise::csv("fastest.csv", FASTEST_COLUMNS),
         ];
         // Plots are named after the scene, which the registered datasets name after their file.
-        for path in scene_paths(&args.scenes).unwrap_or_default() {
+        for path in scene_files(args.scenes.as_deref(), DEFAULT_SCENES).unwrap_or_default() {
             if let Some(stem) = path.file_stem() {
                 p.push(Promise::file(format!(
                     "pareto_{}.png",

@@ -686,17 +686,6 @@ pub fn count_usize(s: &str) -> std::result::Result<usize, String> {
     usize::try_from(v).map_err(|_| format!("`{s}` is too large"))
 }
 
-/// `v` for a message: the shortest round-trip form, in exponent notation below 10⁻⁴ or from
-/// 10⁶ on (`1e-9`, `1e300`, `0.25`, `4000`).
-pub fn num(v: f64) -> String {
-    let a = v.abs();
-    if v != 0.0 && a.is_finite() && !(1e-4..1e6).contains(&a) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
-}
-
 #[cfg(test)]
 mod count_tests {
     use super::count;
@@ -715,15 +704,5 @@ mod count_tests {
         assert!(count("1e30").is_err());
         assert!(count("inf").is_err());
         assert!(count("many").is_err());
-    }
-
-    #[test]
-    fn numbers_in_messages_are_compact() {
-        use super::num;
-        assert_eq!(num(1e300), "1e300");
-        assert_eq!(num(1e-9), "1e-9");
-        assert_eq!(num(0.25), "0.25");
-        assert_eq!(num(4000.0), "4000");
-        assert_eq!(num(0.0), "0");
     }
 }

@@ -1,28 +1,34 @@
 //! Cost estimates checked before any work: a run whose estimate exceeds the work budget is
 //! refused unless `--force` is given (issue 13, item 5).
 //!
-//! An estimate counts *operations*, one unit each for
-//! * a voxel update of a grid solver (iterations × voxels, with the step cap as the bound of
-//!   a solve stopped by a tolerance),
+//! An estimate counts *operations*, in units of one path-tracer collision:
+//! * a voxel update of a grid solver: iterations × voxels, the iterations of a solve
+//!   stopped by a tolerance from [`solve_steps`] (bounded by the step cap);
 //! * an event of a Monte Carlo path (a real or null collision, or a ratio-tracking step of a
 //!   shadow ray): paths × the expected events per path ([`path_events`], [`slab_events`],
-//!   [`infinite_events`]),
-//! * a raymarch sample (pixels × rays per pixel × samples per ray, times the samples of a
-//!   shadow ray per sample with exact shadows).
+//!   [`infinite_events`]);
+//! * a raymarch sample, plus its shadow rays' voxel visits with exact shadows
+//!   ([`raymarch_samples`], [`SHADOW_VISIT`]).
 //!
-//! The estimates are upper-bound flavoured: they use the step cap, not the step a tolerance
-//! stops at, and the mean-chord bound on path length. They exist to catch a mistake (a step
-//! of 10⁻⁹ voxels, an albedo of 0.9999999 in an infinite medium, 10¹⁰ rays per pixel) before
-//! it runs for days, not to predict run times.
+//! The estimates are upper-bound flavoured (the mean-chord bound on path length, the longest
+//! chord for every ray). They exist to catch a mistake (a step of 10⁻³ voxels, an albedo of
+//! 0.9999999 in an infinite medium, 10⁹ samples per pixel) before it runs for days, not to
+//! predict run times.
 //!
 //! **The budget** is [`BUDGET_HOURS`] hours of wall time on this machine's cores at the
 //! nominal rate [`NOMINAL_RATE`] operations per second per core, or
 //! `SCATTERBENCH_WORK_BUDGET` operations when set. *Measured* (2-core Intel Xeon, this
 //! revision's `pt_point_source --albedo 0.99 --g 0 --paths 400000`): 3.65·10⁵ paths/s × 100
-//! collisions per path = 3.65·10⁷ collisions/s on 2 cores, 1.8·10⁷ per core. Every run
-//! `figures` makes (full and quick) stays below 1 % of the 2-core budget; the test
-//! `tests/bounded.rs` refuses each binary's absurd run and runs it with `--force` to its
-//! first step.
+//! collisions per path = 3.65·10⁷ collisions/s on 2 cores, 1.8·10⁷ per core. The 2-core
+//! budget is then 5.2·10¹¹ operations. Estimates of the default full runs `figures` makes
+//! (listed with `SCATTERBENCH_WORK_BUDGET=1`, which refuses every run with its estimate),
+//! against the measured wall time of the committed results on this machine:
+//! `point_source` 1.5·10¹¹ (70 min; ran 4 min: the solve model takes the slowest case for
+//! all), `lbm_diffusion_limit` 9.9·10¹⁰ (46 min; 43 s, the step cap), `accuracy_cost`
+//! 2.6·10¹⁰ (12 min; 6.7 min), `renderings` 1.1·10¹⁰ (4.9 min; 2.1 min), `pt_point_source`
+//! 4.6·10⁹ (2.1 min; 2.1 min), `pt_render` 4.1·10⁸ (11 s; 12 s). So the largest is 29 % of
+//! the 2-core budget. The test `tests/bounded.rs` refuses an absurd run of each binary and
+//! lets `--force` through.
 
 use anyhow::{Result, bail};
 
@@ -64,11 +70,6 @@ impl Estimate {
         self.parts.iter().map(|(_, v)| v).sum()
     }
 
-    /// The largest part.
-    fn largest(&self) -> Option<&(String, f64)> {
-        self.parts.iter().max_by(|a, b| a.1.total_cmp(&b.1))
-    }
-
     /// What `meta.json` records: the total, the parts, and the budget.
     pub fn meta(&self) -> serde_json::Value {
         let (budget, origin) = budget();
@@ -89,10 +90,22 @@ impl Estimate {
         if total <= budget || force {
             return Ok(());
         }
-        let largest = self
-            .largest()
-            .map(|(w, v)| format!("; the largest part is {w}: {}", ops(*v)))
-            .unwrap_or_default();
+        let mut parts: Vec<&(String, f64)> = self.parts.iter().collect();
+        parts.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let largest = if parts.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; the largest part{} {}",
+                if parts.len() > 1 { "s are" } else { " is" },
+                parts
+                    .iter()
+                    .take(3)
+                    .map(|(w, v)| format!("{w}: {}", ops(*v)))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            )
+        };
         bail!(
             "this run is estimated at {} ({}){largest}, more than the work budget of {} \
              ({origin}); pass --force to run it anyway, or set {WORK_ENV}",
@@ -190,9 +203,10 @@ pub fn slab_events(tau: f64, albedo: f64) -> f64 {
 /// Expected events per path (with one shadow ray per scattering) in `medium`, for paths of
 /// at most `max_order` scatterings (`None`: unlimited): scatterings `k` = the fewest of
 /// the collisions before absorption at the σt-weighted albedo, the mean-chord bound
-/// σ̄t·4V/S + 1 and `max_order`. Each of the `k + 1` segments costs σmax/σ̄t tentative
-/// collisions of delta tracking per real one, and its shadow ray that many per mean free
-/// path over at most 10 of them (ratio tracking's roulette ends it once T < 10⁻², i.e.
+/// σ̄t·4V/S + 1 and `max_order`. Each of the `k + 1` segments costs M/Σσt tentative
+/// collisions of delta tracking per real one (M the majorant mass of the blocks, [`majorant_mass`],
+/// over the real optical mass), and its shadow ray that many per mean free path
+/// over at most 10 of them (ratio tracking's roulette ends it once T < 10⁻², i.e.
 /// after about 4.6 mean free paths; the bound doubles that), or over the chord if shorter.
 pub fn path_events(medium: &solvers::Medium<f64>, max_order: Option<u32>) -> f64 {
     let g = &medium.grid;
@@ -204,11 +218,10 @@ pub fn path_events(medium: &solvers::Medium<f64>, max_order: Option<u32>) -> f64
     } else {
         0.0
     };
-    let (mut st, mut ss, mut max) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut st, mut ss) = (0.0f64, 0.0f64);
     for (t, a) in medium.sigma_t.iter().zip(&medium.albedo) {
         st += t;
         ss += t * a;
-        max = max.max(*t);
     }
     let voxels = medium.sigma_t.len().max(1) as f64;
     let mean = st / voxels;
@@ -219,8 +232,33 @@ pub fn path_events(medium: &solvers::Medium<f64>, max_order: Option<u32>) -> f64
     let k = scatterings_before_absorption(albedo)
         .min(mean * chord + 1.0)
         .min(max_order.map_or(f64::INFINITY, f64::from));
-    let ratio = max / mean;
+    let ratio = majorant_mass(medium) / st;
     (k + 1.0) * (ratio * (1.0 + (mean * chord).min(10.0)) + 1.0)
+}
+
+/// Σ over the path tracer's majorant blocks (8³ voxels, `reference::pathtracer`'s default)
+/// of the block's largest σt times its voxels: the optical mass delta tracking sees.
+pub fn majorant_mass(medium: &solvers::Medium<f64>) -> f64 {
+    const BLOCK: usize = 8;
+    let [nx, ny, nz] = medium.grid.n;
+    let mut mass = 0.0;
+    for bz in (0..nz).step_by(BLOCK) {
+        for by in (0..ny).step_by(BLOCK) {
+            for bx in (0..nx).step_by(BLOCK) {
+                let (mut max, mut count) = (0.0f64, 0usize);
+                for z in bz..(bz + BLOCK).min(nz) {
+                    for y in by..(by + BLOCK).min(ny) {
+                        for x in bx..(bx + BLOCK).min(nx) {
+                            max = max.max(medium.sigma_t[(z * ny + y) * nx + x]);
+                            count += 1;
+                        }
+                    }
+                }
+                mass += max * count as f64;
+            }
+        }
+    }
+    mass
 }
 
 /// Steps of a solve on a grid of at most `n` voxels per axis stopped at tolerance `rel`
@@ -238,9 +276,16 @@ pub fn solve_steps(n: usize, rel: f64, max_steps: usize) -> f64 {
     }
 }
 
-/// Raymarch samples of an image: pixels × rays per pixel × samples per ray (the longest
-/// chord of the box over the step), times the samples of two shadow rays per sample with
-/// exact shadows.
+/// Operations of one voxel visit of a shadow ray, relative to one raymarch sample (and to
+/// the nominal operation). *Measured* (`render --scene scenes/cloud_directional.toml`, 64³,
+/// 64² pixels, this 2-core machine): the single-scattering raymarch, 9.1·10⁵ samples with
+/// exact shadows, took 0.18 s, 7 nominal operations per sample; its two shadow rays visit
+/// up to 2 × 111 voxels, about 1/32 operation each.
+pub const SHADOW_VISIT: f64 = 1.0 / 32.0;
+
+/// Operations of a raymarch: pixels × rays per pixel × samples per ray (the longest chord
+/// of the box over the step), each sample 1 operation plus, with exact shadows, two shadow
+/// rays of up to the chord's voxels ([`SHADOW_VISIT`] each).
 pub fn raymarch_samples(
     pixels: f64,
     rays_per_pixel: f64,
@@ -249,14 +294,72 @@ pub fn raymarch_samples(
     shadow_rays: bool,
 ) -> f64 {
     let per_ray = chord_voxels / step + 1.0;
-    // A shadow ray at each sub-step end and one at its midpoint (the linearity check).
-    let per_sample = if shadow_rays { 2.0 * per_ray } else { 1.0 };
+    // A shadow ray at each sub-step end and one at its midpoint (the linearity check), each
+    // a traversal of up to the chord's voxels at SHADOW_VISIT operations per voxel.
+    let per_sample = if shadow_rays {
+        1.0 + 2.0 * chord_voxels * SHADOW_VISIT
+    } else {
+        1.0
+    };
     pixels * rays_per_pixel * per_ray * per_sample
 }
 
 /// The longest chord of a grid of `n` voxels per axis, in voxels.
 pub fn diagonal_voxels(n: [usize; 3]) -> f64 {
     n.iter().map(|&k| (k as f64).powi(2)).sum::<f64>().sqrt()
+}
+
+/// Operations of a path-traced camera render of `channels` (one monochrome scene per
+/// colour channel) at `spp` samples per pixel, restricted to `effects` (paths of at most one
+/// scattering when multiple scattering is not among them).
+pub fn pt_render(
+    channels: &[solvers::scene::Scene],
+    effects: &solvers::scene::Effects,
+    spp: u32,
+) -> f64 {
+    let orders = if effects.contains(solvers::scene::Effect::MultipleScattering) {
+        None
+    } else {
+        Some(1)
+    };
+    channels
+        .iter()
+        .map(|ch| {
+            let pixels = ch
+                .camera
+                .map_or(0.0, |c| (c.resolution[0] * c.resolution[1]) as f64);
+            f64::from(spp) * pixels * path_events(&ch.medium, orders)
+        })
+        .sum()
+}
+
+/// Operations of a grid-pipeline render of `channels` with `config`: the multiple-scattering
+/// solve ([`solve_steps`] × voxels of the downsampled, padded grid) and the raymarch
+/// ([`raymarch_samples`]), per channel.
+pub fn pipeline_render(
+    channels: &[solvers::scene::Scene],
+    config: &solvers::pipeline::PipelineConfig,
+) -> f64 {
+    let d = config.downsample.max(1);
+    channels
+        .iter()
+        .map(|ch| {
+            let n = ch.medium.grid.n;
+            let axes = n.map(|k| k.div_ceil(d) + 2);
+            let voxels: f64 = axes.iter().map(|&k| k as f64).product();
+            let steps = solve_steps(
+                axes.iter().copied().max().unwrap_or(1),
+                config.tolerance.rel,
+                config.tolerance.max_steps,
+            );
+            let pixels = ch
+                .camera
+                .map_or(0.0, |c| (c.resolution[0] * c.resolution[1]) as f64);
+            let rays = (config.pixel_samples * config.pixel_samples) as f64;
+            let exact = matches!(config.shadows, solvers::pipeline::Shadows::Exact);
+            steps * voxels + raymarch_samples(pixels, rays, diagonal_voxels(n), config.step, exact)
+        })
+        .sum()
 }
 
 #[cfg(test)]

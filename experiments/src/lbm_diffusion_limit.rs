@@ -26,6 +26,7 @@ use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
+use solvers::error::Compact;
 use solvers::lbm::{self, Injection, LbmConfig, SigmaMapping};
 use solvers::{Backend, Grid, Medium, Precision};
 
@@ -38,28 +39,37 @@ pub struct Args {
     /// Shared flags.
     #[command(flatten)]
     pub common: CommonArgs,
-    /// Lattice size N (odd, so one site is at the centre). Default 49.
-    #[arg(long)]
+    /// Lattice size N (odd, so one site is at the centre, and large enough that the fit
+    /// window has room: ⌊N/4⌋ > --r-min, i.e. N ≥ 21 for the default --r-min 4). Default 49.
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::common::count_usize)]
     pub n: Option<usize>,
     /// Per-step extinctions σt. Default 0.05,0.1,0.2,0.35,0.5,0.75,1 (0.1,0.5,1 with --quick).
-    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>)]
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, allow_negative_numbers = true)]
     pub sigma_t: Option<Vec<f64>>,
     /// Per-step absorptions σa (cases with σa > σt are skipped). Default 0,0.05,0.2 (0.1
     /// with --quick).
-    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>)]
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, allow_negative_numbers = true)]
     pub sigma_a: Option<Vec<f64>>,
-    /// Innermost fit radius in lattice units.
-    #[arg(long, default_value_t = 4.0)]
+    /// Innermost fit radius in lattice units (finite, > 0 and below ⌊N/4⌋, the outermost).
+    #[arg(long, default_value_t = 4.0, allow_negative_numbers = true)]
     pub r_min: f64,
-    /// Largest Knudsen number (1/σt)/r_min at which the diffusion limit is taken to apply.
-    #[arg(long, default_value_t = 0.5)]
+    /// Largest Knudsen number (1/σt)/r_min at which the diffusion limit is taken to apply
+    /// (finite, > 0).
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub kn_max: f64,
     /// Steady-state tolerance on the relative change of the total density per step.
-    #[arg(long, default_value_t = 1e-7)]
+    #[arg(long, default_value_t = 1e-7, allow_negative_numbers = true)]
     pub tolerance: f64,
-    /// Step cap per case.
-    #[arg(long, default_value_t = 40_000)]
+    /// Step cap per case; at least ⌊N/4⌋, the steps the light needs to reach the outermost
+    /// fit radius (it moves at most one site per axis per step).
+    #[arg(long, default_value_t = 40_000, allow_negative_numbers = true, value_parser = crate::common::count_usize)]
     pub max_steps: usize,
+}
+
+/// The smallest lattice size whose fit window [r_min, ⌊N/4⌋] is not empty: odd, ≥ 15 and
+/// ⌊N/4⌋ > r_min (21 for r_min = 4). As f64, since r_min may be huge.
+pub fn min_n(r_min: f64) -> f64 {
+    (4.0 * (r_min.floor() + 1.0) + 1.0).max(15.0)
 }
 
 /// `cases.csv` row.
@@ -120,8 +130,34 @@ pub fn run(args: &Args) -> Result<Vec<CaseRow>> {
 
 fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<CaseRow>> {
     let n = args.n.unwrap_or(49);
-    if n % 2 == 0 || n < 15 {
-        bail!("--n must be odd and ≥ 15, got {n}");
+    if !(args.r_min.is_finite() && args.r_min > 0.0) {
+        bail!(
+            "--r-min must be finite and > 0, got {}",
+            Compact(args.r_min)
+        );
+    }
+    let n_min = min_n(args.r_min);
+    if n % 2 == 0 || (n as f64) < n_min {
+        bail!(
+            "--n must be odd and ≥ {} (so that the fit window [--r-min {}, ⌊N/4⌋] is not empty), got {n}",
+            Compact(n_min),
+            Compact(args.r_min)
+        );
+    }
+    if !(args.kn_max.is_finite() && args.kn_max > 0.0) {
+        bail!(
+            "--kn-max must be finite and > 0 (the largest Knudsen number (1/σt)/r_min at which the diffusion limit applies), got {}",
+            Compact(args.kn_max)
+        );
+    }
+    if args.max_steps < n / 4 {
+        bail!(
+            "--max-steps must be ≥ ⌊N/4⌋ = {}: light moves at most one site per axis per step, so {} steps leave sites of the fit window [{}, {}] dark and the fit meaningless",
+            n / 4,
+            args.max_steps,
+            Compact(args.r_min),
+            n / 4
+        );
     }
     solvers::budget::check(format!("--n {n}"), solvers::budget::cube_solver_bytes(n))?;
     let sts: Vec<f64> = match &args.sigma_t {
@@ -141,9 +177,29 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<CaseRow>> {
         bail!("--sigma-a: {s} is outside [0, 1]");
     }
     let r_max = (n / 4) as f64;
-    if !(args.r_min > 0.0 && args.r_min < r_max) {
-        bail!("--r-min must be in (0, N/4 = {r_max})");
+    // The fit a/r + b needs sites at two radii at least in [r_min, r_max].
+    let radii: Vec<f64> = (0..=n / 4)
+        .flat_map(|i| (0..=i).flat_map(move |j| (0..=j).map(move |k| (i, j, k))))
+        .map(|(i, j, k)| ((i * i + j * j + k * k) as f64).sqrt())
+        .filter(|r| *r >= args.r_min && *r <= r_max)
+        .collect();
+    if radii.iter().all(|r| *r == radii[0]) {
+        bail!(
+            "--r-min {}: the fit window [{}, ⌊N/4⌋ = {r_max}] holds sites at one radius only; lower --r-min or raise --n",
+            Compact(args.r_min),
+            Compact(args.r_min)
+        );
     }
+    let mut work = crate::cost::Estimate::new();
+    work.add(
+        format!(
+            "{} cases × --max-steps {} × {n}³ sites",
+            sts.len() * sas.len(),
+            args.max_steps
+        ),
+        (sts.len() * sas.len()) as f64 * args.max_steps as f64 * (n as f64).powi(3),
+    );
+    ctx.work(&work)?;
     let params = serde_json::json!({
         "n": n, "sigma_t": sts, "sigma_a": sas, "r_min": args.r_min, "r_max": r_max,
         "kn_max": args.kn_max, "tolerance": args.tolerance, "max_steps": args.max_steps,
@@ -197,6 +253,13 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<CaseRow>> {
             }
         }
         let a = (m * sxy - sx * sy) / (m * sxx - sx * sx);
+        if !(a.is_finite() && a > 0.0) {
+            bail!(
+                "σt={st} σa={sa}: ρ over the fit window shows no 1/r decay (fitted a = {}) after {} steps; raise --max-steps",
+                Compact(a),
+                sol.steps
+            );
+        }
         let b = (sy - a * sx) / m;
         let mean = sy / m;
         let rms = (pts

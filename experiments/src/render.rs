@@ -261,7 +261,7 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
     if !(MIN_STEP..=1.0).contains(&step) {
         bail!(
             "--step {}: the raymarch sub-step must be in [{MIN_STEP}, 1] voxels",
-            crate::common::num(step)
+            solvers::error::Compact(step)
         );
     }
     if pixel_samples > MAX_PIXEL_SAMPLES {
@@ -350,51 +350,25 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             reference::pathtracer::MIN_BATCHES
         );
     }
-    let pixels = (camera.resolution[0] * camera.resolution[1]) as f64;
+    let (_, rendered) = pipeline::effects_of(&channels, &file.effects, &config)?;
     let mut work = crate::cost::Estimate::new();
-    let nch = channels.len() as f64;
     if pt {
-        let (_, rendered) = pipeline::effects_of(&channels, &file.effects, &config)?;
-        let orders = if rendered.contains(solvers::scene::Effect::MultipleScattering) {
-            None
-        } else {
-            Some(1)
-        };
-        let events = crate::cost::path_events(&channels[0].medium, orders);
         work.add(
-            format!(
-                "path tracing, {spp} spp × {pixels} pixels × {events:.3e} events × {nch} channels"
-            ),
-            spp as f64 * pixels * events * nch,
+            format!("path tracing, {spp} spp, {} channel(s)", channels.len()),
+            crate::cost::pt_render(&channels, &rendered, spp),
         );
     } else {
-        let axes = n.map(|k| k.div_ceil(downsample) + 2);
-        let voxels: f64 = axes.iter().map(|&k| k as f64).product();
-        let steps = crate::cost::solve_steps(
-            axes.iter().copied().max().unwrap_or(1),
-            tolerance,
-            max_iterations,
-        );
         work.add(
             format!(
-                "the multiple-scattering solve, {steps:.0} steps (--max-iterations \
-                 {max_iterations}) × {voxels} voxels × {nch} channels"
+                "the pipeline: the solve (--max-iterations {max_iterations}, --tolerance {}) \
+                 and the raymarch (--step {step}, --pixel-samples {pixel_samples}), {} \
+                 channel(s)",
+                solvers::error::Compact(tolerance),
+                channels.len()
             ),
-            steps * voxels * nch,
-        );
-        let rays = (pixel_samples * pixel_samples) as f64;
-        work.add(
-            format!("the raymarch, {pixels} pixels × {rays} rays, --step {step}"),
-            crate::cost::raymarch_samples(
-                pixels,
-                rays,
-                crate::cost::diagonal_voxels(n),
-                step,
-                matches!(shadows, Shadows::Exact),
-            ) * nch,
+            crate::cost::pipeline_render(&channels, &config),
         );
     }
-    let (_, rendered) = pipeline::effects_of(&channels, &file.effects, &config)?;
     let warnings = solvers::scene::warnings::degenerate(&channels[0], Some(&rendered));
     for w in &warnings {
         eprintln!("warning: {}: {w}", args.scene.display());

@@ -22,20 +22,23 @@
 //!   `<scene>_a<albedo>_error.png`: the signed multiple-scattering error of each (red: too
 //!   bright, blue: too dark, saturated at 25 % of the white point).
 
-use crate::accuracy_cost::grid_config;
+use crate::accuracy_cost::{COARSEN_HELP, coarsen_factor, grid_config, scene_files};
 use crate::common::{BackendArgs, CommonArgs, Ctx, list_item, progress};
 use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::images::{
     ColourMap, Tile, relative_noise, white_point, write_strip, write_strip_with_bar,
 };
 use crate::report::{Section, table};
-use crate::scenes::{Prepared, errors, load, parse_resolution, render_reference, scene_paths};
+use crate::scenes::{Prepared, errors, load, parse_resolution, render_reference};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use solvers::method::MethodRef;
 use solvers::pipeline::{self, ChannelImages};
 use solvers::{Backend, Precision};
 use std::time::Instant;
+
+/// The scenes of the sweep without `--scenes` (relative to the workspace root).
+pub const DEFAULT_SCENES: &str = "scenes/nebula.toml,scenes/shell_core.toml";
 
 /// Flags of `renderings`.
 #[derive(Debug, Clone, clap::Parser)]
@@ -47,9 +50,10 @@ pub struct Args {
     /// Shared backend flag (the diffusion solve runs there; CPU runs in f32).
     #[command(flatten)]
     pub backend: BackendArgs,
-    /// Scene files, comma-separated.
-    #[arg(long, default_value = "scenes/nebula.toml,scenes/shell_core.toml")]
-    pub scenes: String,
+    /// Scene files, comma-separated; relative paths are from the current directory.
+    /// Default: scenes/nebula.toml and scenes/shell_core.toml of the workspace.
+    #[arg(long)]
+    pub scenes: Option<String>,
     /// Albedos of the sweep (default 0.1,0.3,0.5,0.7,0.9,1.0; 0.3,0.9 with --quick).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>)]
     pub albedo: Option<Vec<f64>>,
@@ -64,14 +68,14 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>)]
     pub full_at: Option<Vec<f64>>,
     /// Samples per pixel of the reference (default 1024; 64 with --quick).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::count_u32)]
     pub spp: Option<u32>,
     /// Solver tolerance (`solvers::method::Tolerance::rel`: R̄/j̄ for CDA/FLD; each method
     /// documents its mapping).
     #[arg(long, default_value_t = 1e-4)]
     pub tolerance: f64,
-    /// Coarsen the scenes' media first (default 1; 2 with --quick).
-    #[arg(long)]
+    /// Coarsening factor of the scenes' media (see [`COARSEN_HELP`]).
+    #[arg(long, help = COARSEN_HELP, allow_negative_numbers = true)]
     pub coarsen: Option<usize>,
     /// Override the camera resolution `W,H` (default: the scene's; 24,24 with --quick).
     #[arg(long)]
@@ -210,13 +214,13 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
         Some(v) => v.clone(),
         None => vec![0.9],
     };
-    let coarsen = args.coarsen.unwrap_or(if quick { 2 } else { 1 });
+    let coarsen = coarsen_factor(args.coarsen, quick)?;
     let resolution = match &args.resolution {
         Some(s) => Some(parse_resolution(s)?),
         None if quick => Some([24, 24]),
         None => None,
     };
-    let scenes = scene_paths(&args.scenes)?;
+    let scenes = scene_files(args.scenes.as_deref(), DEFAULT_SCENES)?;
     let backends = args.backend.open()?;
     let params = serde_json::json!({
         "scenes": scenes, "albedo": albedos, "methods": args.methods, "downsample": factors,
@@ -224,17 +228,46 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
         "full_at": full_at,
         "seed": args.seed,
     });
+    let mut prepared = scenes
+        .iter()
+        .map(|p| load(p, coarsen, resolution))
+        .collect::<Result<Vec<_>>>()?;
+    let mut work = crate::cost::Estimate::new();
+    let nb = backends.list(Precision::F32).len() as f64;
+    for scene in &prepared {
+        let reference = crate::cost::pt_render(&scene.channels, &scene.effects, spp);
+        work.add(
+            format!("{}: {} references of {spp} spp", scene.name, albedos.len()),
+            reference * albedos.len() as f64,
+        );
+        for m in &methods {
+            for &k in &factors {
+                let runs = if k == 1 {
+                    albedos.iter().filter(|a| full_at.contains(a)).count()
+                } else {
+                    albedos.len()
+                } as f64;
+                let one = crate::cost::pipeline_render(
+                    &scene.channels,
+                    &grid_config(m, k, args.tolerance),
+                );
+                work.add(
+                    format!("{}: {m} ds={k}, {runs} albedos", scene.name),
+                    one * runs * nb,
+                );
+            }
+        }
+    }
+    ctx.work(&work)?;
     ctx.start(params)?;
     let out = ctx;
     out.record("backends", backends.meta());
     let mut rows = Vec::new();
-    for path in &scenes {
-        let mut scene = load(path, coarsen, resolution)?;
+    for scene in &mut prepared {
         let bar = progress(albedos.len() as u64, &args.common, &scene.name);
         for &albedo in &albedos {
-            set_albedo(&mut scene, albedo);
-            render_reference(&mut scene, spp, args.seed)
-                .with_context(|| format!("albedo {albedo}"))?;
+            set_albedo(scene, albedo);
+            render_reference(scene, spp, args.seed).with_context(|| format!("albedo {albedo}"))?;
             out.timing(
                 format!("{}/a{albedo}/reference", scene.name),
                 scene.reference_seconds,
@@ -273,7 +306,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
                         )
                         .with_context(|| format!("{} α={albedo} {m} ds={k}", scene.name))?;
                         let seconds = t0.elapsed().as_secs_f64();
-                        let (error, _, error_single, error_multiple) = errors(&scene, &r.channels);
+                        let (error, _, error_single, error_multiple) = errors(scene, &r.channels);
                         rows.push(ErrorRow {
                             scene: scene.name.clone(),
                             albedo,
@@ -302,7 +335,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
                     }
                 }
             }
-            write_images(out, &scene, albedo, &ref_total, &renders)?;
+            write_images(out, scene, albedo, &ref_total, &renders)?;
             bar.inc(1);
         }
         bar.finish_and_clear();

@@ -31,6 +31,7 @@ use reference::transport::hfunction::{HFunction, h_function, plane_albedo};
 use reference::transport::point::ExactPointSource;
 use reference::transport::slab::Slab;
 use serde::Serialize;
+use solvers::error::Compact;
 use std::time::Instant;
 
 /// Flags of `transport_references`.
@@ -43,8 +44,9 @@ pub struct Args {
     /// Albedos of the point-source curves.
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0.3,0.7,0.9,0.99")]
     pub albedo: Vec<f64>,
-    /// Largest radius (mean free paths) of the point-source curves.
-    #[arg(long, default_value_t = 50.0)]
+    /// Largest radius (mean free paths) of the point-source curves, in (0.01, 400]
+    /// (see [`R_MAX_LIMIT`]).
+    #[arg(long, default_value_t = 50.0, allow_negative_numbers = true)]
     pub r_max: f64,
     /// Albedos of the H-function curves (c ≤ 1).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0.1,0.5,0.9,0.99,0.999999,1")]
@@ -59,6 +61,17 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     pub mu0: f64,
 }
+
+/// The largest `--r-max`: up to here every column of `point_source.csv` is a normal f64 for
+/// every albedo in [0, 1), so the relative errors are ratios of numbers with full precision.
+/// Measured (first r where the exact, Grosjean or CDA radial density leaves the normal
+/// range): 413 mean free paths at c = 0, where the CDA density 3r e^{−√3 r} falls below
+/// 2.2·10⁻³⁰⁸ first (c = 0.3: 494, c = 0.9: 1309, c = 0.999999: 4.2·10⁵). Beyond it the
+/// relative errors are ratios of subnormals, then −1 (CDA underflowed to 0) and, from
+/// r ≈ 745 at low albedos, where e^{−r} and the exact density underflow too, 0/0 = NaN.
+/// (The exact solution itself is accurate wherever it is representable; the limit is
+/// f64's range, not the series or the quadrature.)
+pub const R_MAX_LIMIT: f64 = 400.0;
 
 #[derive(Debug, Serialize)]
 struct PointRow {
@@ -150,8 +163,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<PointSummary>> {
     if let Some(g) = gs.iter().find(|g| g.is_nan() || g.abs() >= 1.0) {
         bail!("--g: {g} is outside (−1, 1)");
     }
-    if !(args.r_max.is_finite() && args.r_max > 0.01) {
-        bail!("--r-max must be finite and > 0.01, got {}", args.r_max);
+    if !(args.r_max > 0.01 && args.r_max <= R_MAX_LIMIT) {
+        bail!(
+            "--r-max must be in (0.01, {R_MAX_LIMIT}] mean free paths, got {}: beyond r ≈ 413 the CDA density (at c = 0) underflows f64, and from r ≈ 745 the exact density too, so the relative-error columns become −1 and NaN",
+            Compact(args.r_max)
+        );
     }
     if !(args.mu0 > 0.0 && args.mu0 <= 1.0) {
         bail!("--mu0 must be in (0, 1], got {}", args.mu0);
@@ -562,5 +578,39 @@ impl Experiment for TransportReferences {
             "slab_transmittance.png",
         ]));
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every column of `point_source.csv` is a normal f64, with finite relative errors, out to
+    /// [`R_MAX_LIMIT`] for albedos across [0, 1); past the measured 413 (c = 0) it is not.
+    #[test]
+    fn the_r_max_limit_keeps_every_column_representable() {
+        let row = |p: &ExactPointSource, c: f64, r: f64| {
+            let exact = p.radial_density(r);
+            let (g, d) = (r * r * grosjean(r, c), r * r * cda(r, c));
+            [exact, g, d, g / exact - 1.0, d / exact - 1.0]
+        };
+        for k in 0..=20 {
+            let c = 0.05 * k as f64 * 0.99999;
+            let p = ExactPointSource::new(c).unwrap_or_else(|e| panic!("{e}"));
+            for r in [1.0, 100.0, R_MAX_LIMIT] {
+                let v = row(&p, c, r);
+                assert!(
+                    v[..3].iter().all(|x| x.is_normal()),
+                    "c = {c}, r = {r}: {v:?}"
+                );
+                assert!(
+                    v[3..].iter().all(|x| x.is_finite()),
+                    "c = {c}, r = {r}: {v:?}"
+                );
+            }
+        }
+        let p = ExactPointSource::new(0.0).unwrap_or_else(|e| panic!("{e}"));
+        assert!(!row(&p, 0.0, 414.0)[2].is_normal());
+        assert!(row(&p, 0.0, 750.0)[3].is_nan());
     }
 }

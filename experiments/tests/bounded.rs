@@ -10,21 +10,11 @@
 
 mod common;
 
-use common::spawn::{Outcome, spawn};
-use std::path::{Path, PathBuf};
+use common::spawn::{Outcome, scratch, spawn, workspace};
+use std::path::Path;
 
-fn dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("scatterbench-bounded-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
+fn dir(tag: &str) -> std::path::PathBuf {
+    scratch(&format!("bounded-{tag}"))
 }
 
 fn scene(name: &str) -> String {
@@ -64,10 +54,17 @@ fn runs_over_the_work_budget_are_refused_with_their_estimate_and_force_runs_them
             env!("CARGO_BIN_EXE_pt_point_source"),
             vec!["--albedo", "0.9999999"],
         ),
-        // 64² pixels × (110 voxels / 0.001)² raymarch samples with exact shadow rays.
+        // 64² pixels × 64² rays × 110 voxels / 0.001 raymarch samples, with shadow rays.
         (
             env!("CARGO_BIN_EXE_render"),
-            vec!["--scene", &cloud, "--step", "0.001"],
+            vec![
+                "--scene",
+                &cloud,
+                "--step",
+                "0.001",
+                "--pixel-samples",
+                "64",
+            ],
         ),
         (
             env!("CARGO_BIN_EXE_render"),
@@ -85,6 +82,15 @@ fn runs_over_the_work_budget_are_refused_with_their_estimate_and_force_runs_them
         (
             env!("CARGO_BIN_EXE_i3rc_step_cloud"),
             vec!["--paths", "1e13"],
+        ),
+        (env!("CARGO_BIN_EXE_renderings"), vec!["--spp", "1e9"]),
+        (
+            env!("CARGO_BIN_EXE_accuracy_cost"),
+            vec!["--reference-spp", "1e9"],
+        ),
+        (
+            env!("CARGO_BIN_EXE_lbm_diffusion_limit"),
+            vec!["--max-steps", "1e12"],
         ),
         (
             env!("CARGO_BIN_EXE_lbm_convergence"),

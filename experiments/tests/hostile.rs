@@ -11,24 +11,14 @@
 
 mod common;
 
-use common::spawn::spawn;
+use common::spawn::{scratch, spawn, workspace};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 fn tmp(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("scatterbench-hostile-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
+    scratch(&format!("hostile-{tag}"))
 }
 
 /// A plume scene with `from` replaced by `to` (for one hostile field).

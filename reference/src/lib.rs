@@ -26,13 +26,14 @@ pub mod point_source;
 pub mod quadrature;
 pub mod transport;
 
+use solvers::error::Compact;
 use thiserror::Error;
 
 /// Errors of the reference computations.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum ReferenceError {
     /// A parameter is outside its domain.
-    #[error("parameter `{name}` = {value} is invalid: {reason}")]
+    #[error("parameter `{name}` = {} is invalid: {reason}", Compact(*.value))]
     BadParameter {
         /// Parameter name.
         name: &'static str,
@@ -41,8 +42,21 @@ pub enum ReferenceError {
         /// What is allowed.
         reason: &'static str,
     },
-    /// The scene (medium, lights, camera) is invalid.
-    #[error("invalid scene: {0}")]
+    /// One entry of a list parameter is outside its domain (the list itself may be fine
+    /// elsewhere).
+    #[error("parameter `{name}[{index}]` = {} is invalid: {reason}", Compact(*.value))]
+    BadListEntry {
+        /// Parameter name.
+        name: &'static str,
+        /// 0-based index of the offending entry.
+        index: usize,
+        /// Its value.
+        value: f64,
+        /// What is allowed.
+        reason: &'static str,
+    },
+    /// The scene (medium, lights, camera) is invalid; the solver error is the source.
+    #[error("invalid scene")]
     Scene(#[from] solvers::SolverError),
     /// An image was requested from a scene without a camera.
     #[error("the scene has no camera; an image render needs `scene.camera`")]
@@ -62,7 +76,7 @@ pub enum ReferenceError {
         what: &'static str,
     },
     /// An iterative solve did not converge (a bug or a parameter at the edge of the domain).
-    #[error("{what} did not converge (parameter {parameter})")]
+    #[error("{what} did not converge (parameter {})", Compact(*.parameter))]
     NoConvergence {
         /// What was being solved.
         what: &'static str,

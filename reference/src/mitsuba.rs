@@ -98,8 +98,8 @@ pub enum MitsubaError {
     /// The script's output is missing or inconsistent.
     #[error("unexpected output from the Mitsuba script: {0}")]
     Output(String),
-    /// A file could not be written or read.
-    #[error("{path}: {source}")]
+    /// A file could not be written or read (the I/O error is the source).
+    #[error("{}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -107,7 +107,7 @@ pub enum MitsubaError {
         source: std::io::Error,
     },
     /// A grid could not be exported.
-    #[error("exporting a grid: {0}")]
+    #[error("exporting a grid")]
     Vol(#[from] VolError),
 }
 

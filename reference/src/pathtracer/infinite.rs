@@ -88,21 +88,24 @@ impl InfiniteMedium {
                 reason: "need at least two shell edges",
             });
         }
-        if let Some(w) = edges
-            .windows(2)
-            .find(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+        if let Some((index, &value)) = edges
+            .iter()
+            .enumerate()
+            .find(|(_, r)| !(r.is_finite() && **r >= 0.0))
         {
-            return Err(ReferenceError::BadParameter {
+            return Err(ReferenceError::BadListEntry {
                 name: "edges",
-                value: w[1],
-                reason: "must be strictly increasing",
+                index,
+                value,
+                reason: "must be finite and ≥ 0",
             });
         }
-        if !(edges[0] >= 0.0 && edges[edges.len() - 1].is_finite()) {
-            return Err(ReferenceError::BadParameter {
+        if let Some(index) = (1..edges.len()).find(|&i| edges[i] <= edges[i - 1]) {
+            return Err(ReferenceError::BadListEntry {
                 name: "edges",
-                value: edges[0],
-                reason: "must be finite and ≥ 0",
+                index,
+                value: edges[index],
+                reason: "must be greater than the edge before it (edges strictly increase)",
             });
         }
         check_batches(settings.batches, settings.paths, "paths")?;

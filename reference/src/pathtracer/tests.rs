@@ -573,6 +573,39 @@ fn slab_single_scattering_matches_closed_form() {
     }
 }
 
+/// Invalid shell edges are named by their index and value: the entry that is wrong, not the
+/// first one (issue 13: `0,1,inf` used to blame `edges = 0`).
+#[test]
+fn bad_shell_edges_name_the_offending_entry() {
+    let m = InfiniteMedium::new(0.3, Phase::Isotropic).unwrap();
+    let settings = PathSettings::new(1000, 1);
+    let cases: [(&[f64], &str); 5] = [
+        (
+            &[0.0, 1.0, f64::INFINITY],
+            "parameter `edges[2]` = inf is invalid: must be finite and ≥ 0",
+        ),
+        (&[0.0, f64::NAN, 2.0], "`edges[1]` = NaN is invalid"),
+        (
+            &[-1.0, 1.0],
+            "`edges[0]` = -1 is invalid: must be finite and ≥ 0",
+        ),
+        (
+            &[0.0, 2.0, 1.0],
+            "`edges[2]` = 1 is invalid: must be greater",
+        ),
+        (
+            &[0.0, 1e300, 1e300],
+            "`edges[2]` = 1e300 is invalid: must be greater",
+        ),
+    ];
+    for (edges, want) in cases {
+        match m.shells(edges, &settings) {
+            Err(e) => assert!(e.to_string().contains(want), "{edges:?}: {e}"),
+            Ok(_) => panic!("{edges:?} accepted"),
+        }
+    }
+}
+
 /// Point source in an unbounded medium: with c = 0 the radial density is the ballistic
 /// e^{−r} (shell average (e^{−a} − e^{−b})/Δr) and nothing is collided; for c > 0 the
 /// uncollided part still is; and every path is eventually absorbed, so

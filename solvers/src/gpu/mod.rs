@@ -15,6 +15,20 @@
 //! * `WGPU_POWER_PREF` (`low`/`high`) when no name is given.
 //! * `SCATTERBENCH_REQUIRE_GPU=1` makes [`GpuContext::for_tests`] fail instead of skip
 //!   when there is no adapter (CI sets it; see `.ci/run`).
+//!
+//! ## `XDG_RUNTIME_DIR is invalid or not set`
+//! With Mesa's Vulkan drivers (lavapipe included) and `XDG_RUNTIME_DIR` unset, opening a
+//! context prints `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` to
+//! stderr. It is not ours and not an error: Mesa's implicit `VK_LAYER_MESA_device_select`
+//! layer looks for a Wayland compositor (to put its GPU first) on every
+//! `vkEnumeratePhysicalDevices` call, because wgpu enables `VK_KHR_wayland_surface`
+//! whenever the driver offers it, and libwayland prints the line when it cannot find the
+//! socket directory. A context enumerates adapters once (two Vulkan calls: count, then
+//! list), so the line appears twice per context — it was four before the name lookup and
+//! wgpu's choice stopped enumerating separately. wgpu has no safe way to leave the Wayland
+//! extension out, and the backends are already only those compiled in (Vulkan on Linux;
+//! no GL), so the remaining lines go away only from the environment: set
+//! `XDG_RUNTIME_DIR`, or disable the layer with `NODEVICE_SELECT=1`.
 
 pub mod bandwidth;
 pub mod kernel;
@@ -185,9 +199,12 @@ impl GpuContext {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
         desc.backends = backends;
         let instance = wgpu::Instance::new(desc);
-        let adapters = pollster::block_on(instance.enumerate_adapters(backends));
+        // One adapter enumeration per context: by name when one is given, else wgpu's own
+        // choice. (Enumerating first and then asking wgpu enumerated twice; see the module
+        // docs for why each enumeration can print to stderr.)
         let adapter = match sel.name.clone() {
             Some(wanted) if !wanted.is_empty() => {
+                let adapters = pollster::block_on(instance.enumerate_adapters(backends));
                 let found: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
                 adapters
                     .into_iter()

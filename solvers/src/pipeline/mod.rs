@@ -64,7 +64,8 @@ pub enum PipelineError {
     NoCamera,
     /// A light the plan needs is of a kind the grid pipeline cannot bake.
     #[error(
-        "light {index} is a {kind} light, which the grid pipeline does not support (directional and point lights only); exclude its effects or use the path tracer"
+        "light {index} is {} light, which the grid pipeline does not support (directional and point lights only); exclude its effects or use the path tracer",
+        crate::error::indefinite(kind)
     )]
     UnsupportedLight {
         /// Index of the light.

@@ -25,8 +25,8 @@ pub enum VdbError {
         "cannot read `{0}`: this build has no OpenVDB reader (rebuild with the `vdb` feature of solvers)"
     )]
     NotBuilt(PathBuf),
-    /// The file cannot be opened.
-    #[error("cannot read `{path}`: {source}")]
+    /// The file cannot be opened (the I/O error is the source).
+    #[error("cannot read `{}`", path.display())]
     Io {
         /// The file.
         path: PathBuf,

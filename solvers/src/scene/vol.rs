@@ -28,8 +28,8 @@ pub const HEADER_BYTES: usize = 48;
 /// Errors reading or writing `.vol` files.
 #[derive(Debug, Error)]
 pub enum VolError {
-    /// The file could not be read or written.
-    #[error("{path}: {source}")]
+    /// The file could not be read or written (the I/O error is the source).
+    #[error("{}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -96,8 +96,9 @@ pub enum VolError {
         /// Voxel edge per axis.
         edges: [f64; 3],
     },
-    /// The grid is not a valid solver grid (e.g. fewer than 3 cells on an axis).
-    #[error("not a valid solver grid: {0}")]
+    /// The grid is not a valid solver grid (e.g. fewer than 3 cells on an axis); the solver
+    /// error is the source.
+    #[error("not a valid solver grid")]
     Grid(#[from] crate::SolverError),
 }
 

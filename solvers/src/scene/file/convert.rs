@@ -6,6 +6,7 @@
 use super::SceneFileError;
 use super::locate::Locator;
 use super::schema::{CameraDoc, EffectsDoc, LightDoc, MediumDoc, PhaseDoc};
+use crate::error::{Compact, indefinite};
 use crate::scene::effects::{EffectPattern, EffectSelection, EffectsError};
 use crate::scene::vol::{VolError, VolGrid};
 use crate::scene::{Camera, Light, Phase, Projection};
@@ -32,7 +33,11 @@ impl Cx<'_> {
                 .err(field, format!("cannot read `{}`: {source}", path.display())),
             e => self.loc.err(
                 field,
-                format!("`{}` is not a valid .vol file: {e}", path.display()),
+                format!(
+                    "`{}` is not a valid .vol file: {}",
+                    path.display(),
+                    crate::error::chain(&e)
+                ),
             ),
         })
     }
@@ -275,8 +280,8 @@ impl Cx<'_> {
                 return Err(self.loc.err(
                     &at(name),
                     format!(
-                        "not a parameter of a {} light (it takes {})",
-                        l.kind,
+                        "not a parameter of {} light (it takes {})",
+                        indefinite(&l.kind),
                         takes.join(", ")
                     ),
                 ));
@@ -284,7 +289,7 @@ impl Cx<'_> {
             if !is && takes.contains(&name) {
                 return Err(self.loc.err(
                     &format!("light[{i}]"),
-                    format!("a {} light needs `{name}`", l.kind),
+                    format!("{} light needs `{name}`", indefinite(&l.kind)),
                 ));
             }
         }
@@ -322,7 +327,7 @@ impl Cx<'_> {
                 let field = name.strip_prefix("light.").unwrap_or(name);
                 self.loc.err(
                     &format!("light[{i}].{field}"),
-                    format!("{value} is invalid: {reason}"),
+                    format!("{} is invalid: {reason}", Compact(value)),
                 )
             }
             e => self.loc.err(&format!("light[{i}]"), e.to_string()),
@@ -381,7 +386,7 @@ impl Cx<'_> {
                     "camera.fov_y_degrees" => "camera.fov_y",
                     n => n,
                 };
-                loc.err(field, format!("{value} is invalid: {reason}"))
+                loc.err(field, format!("{} is invalid: {reason}", Compact(value)))
             }
             e => loc.err("camera", e.to_string()),
         })?;

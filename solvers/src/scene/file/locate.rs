@@ -163,12 +163,44 @@ impl<'a> Locator<'a> {
         }
     }
 
-    /// A toml error, located by its span (the field is the path at the span).
+    /// Whether the document has `path` (as a key, table or array element).
+    pub(super) fn has(&self, path: &str) -> bool {
+        self.span_of(path).is_some()
+    }
+
+    /// A TOML syntax error: about the text at its line:column, not about a field — the tree
+    /// recovered around a broken line (an unclosed `[medium` header, say) puts the error's
+    /// position inside whatever table follows, which is not where the problem is.
+    pub(super) fn syntax_err(&self, e: &toml::de::Error) -> SceneFileError {
+        let (line, column) = match e.span() {
+            Some(s) => {
+                let (l, c) = self.line_col(s.start);
+                (Some(l), Some(c))
+            }
+            None => (None, None),
+        };
+        SceneFileError::Invalid {
+            file: self.file.to_path_buf(),
+            field: String::new(),
+            line,
+            column,
+            problem: format!("TOML syntax error: {}", e.message().trim()),
+        }
+    }
+
+    /// A toml error, located by its span (the field is the path at the span). A missing
+    /// field of the top-level table comes with an empty span at the start of the document,
+    /// where the first key is: that key is not the field at fault, so the error names none.
     pub(super) fn toml_err(&self, e: &toml::de::Error, fallback_field: &str) -> SceneFileError {
         match e.span() {
             Some(s) => {
                 let (l, c) = self.line_col(s.start);
-                let field = self.path_at(s.start);
+                let top_level_missing = s.is_empty() && e.message().starts_with("missing field");
+                let field = if top_level_missing {
+                    String::new()
+                } else {
+                    self.path_at(s.start)
+                };
                 SceneFileError::Invalid {
                     file: self.file.to_path_buf(),
                     field: if field.is_empty() {

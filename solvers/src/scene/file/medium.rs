@@ -129,7 +129,7 @@ impl Cx<'_> {
                 reason,
             }) if m.params.as_ref().is_some_and(|p| p.contains_key(name)) => loc.err(
                 &format!("medium.params.{name}"),
-                format!("{value} is invalid: {reason}"),
+                format!("{} is invalid: {reason}", crate::error::Compact(value)),
             ),
             GeneratorError::Solver(e) => {
                 loc.err("medium.params", format!("generator `{name}`: {e}"))
@@ -154,7 +154,7 @@ impl Cx<'_> {
         let grid_name = m.grid.as_deref().unwrap_or("density");
         let path = self.dir.join(rel);
         let (dims, sigma_t) = vdb::read_float_grid(&path, grid_name)
-            .map_err(|e| loc.err("medium.vdb", e.to_string()))?;
+            .map_err(|e| loc.err("medium.vdb", crate::error::chain(&e)))?;
         let grid = Grid::new(dims, 1.0 / dims.into_iter().max().unwrap_or(1) as f64)
             .map_err(|e| loc.err("medium.vdb", format!("`{rel}`: {e}")))?;
         if m.albedo.is_none() {
@@ -182,8 +182,12 @@ impl Cx<'_> {
             // Replaced by the explicit box in the overrides; only the dimensions matter here.
             Grid::new(vol.dims, 1.0).map_err(|e| loc.err("medium.file", format!("`{rel}`: {e}")))?
         } else {
-            vol.grid()
-                .map_err(|e| loc.err("medium.file", format!("`{rel}`: {e}")))?
+            vol.grid().map_err(|e| {
+                loc.err(
+                    "medium.file",
+                    format!("`{rel}`: {}", crate::error::chain(&e)),
+                )
+            })?
         };
         if m.albedo.is_none() {
             return Err(loc.err(

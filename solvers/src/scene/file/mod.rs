@@ -52,7 +52,8 @@
 //!
 //! Every table rejects unknown keys. Errors are [`SceneFileError::Invalid`], naming the field
 //! as a TOML path (`light[1].direction`), the problem, and the line and column where the file
-//! has them. A later format adds keys under a new `format` number; this build reads format 1
+//! has them; a TOML syntax error (an unclosed `[medium` header, say) names no field, only
+//! where the text breaks, and a missing `[medium]` table is named as such. A later format adds keys under a new `format` number; this build reads format 1
 //! and says so for any other.
 //!
 //! Decisions: voxel fields keep their values when `min`/`max` move or scale a generator's box
@@ -89,8 +90,8 @@ pub const FORMAT_VERSION: i64 = 1;
 /// Errors loading or writing a scene file.
 #[derive(Debug, Error)]
 pub enum SceneFileError {
-    /// A file could not be read or written.
-    #[error("{path}: {source}")]
+    /// A file could not be read or written (the I/O error is the source, not repeated here).
+    #[error("{}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -235,7 +236,7 @@ impl SceneFile {
     pub fn parse(text: &str, dir: &Path, file: &Path) -> Result<Self, SceneFileError> {
         let (loc, syntax) = Locator::new(text, file);
         if let Some(e) = syntax.first() {
-            return Err(loc.toml_err(e, ""));
+            return Err(loc.syntax_err(e));
         }
         let probe: FormatProbe = toml::from_str(text).map_err(|e| loc.toml_err(&e, ""))?;
         match probe.format {
@@ -252,6 +253,12 @@ impl SceneFile {
                     format!("unsupported format {v}: this build reads format {FORMAT_VERSION}"),
                 ));
             }
+        }
+        if !loc.has("medium") {
+            return Err(loc.err(
+                "medium",
+                "missing: a scene file needs a [medium] table (with `generator`, `file` or `vdb`)",
+            ));
         }
         let doc: Doc = toml::from_str(text).map_err(|e| loc.toml_err(&e, ""))?;
         let cx = Cx {

@@ -252,3 +252,88 @@ fn round_trip_through_toml_and_vol_files() {
     std::fs::remove_dir_all(&dir).ok();
     assert_eq!(c, b);
 }
+
+/// Issue 13: a missing `[medium]` table is named as such (it used to be blamed on
+/// `format`, the first key), and an unclosed `[medium` header is a TOML syntax error at the
+/// header's line and column (it used to be blamed on the next table, `light`).
+#[test]
+fn a_missing_medium_and_a_broken_header_point_at_the_real_problem() {
+    let light =
+        "[[light]]\ntype = \"directional\"\ndirection = [0.0, 0.0, -1.0]\nirradiance = 1.0\n";
+    let e = parse(&format!("format = 1\n\n{light}")).unwrap_err();
+    assert_eq!(e.field(), Some("medium"), "{e}");
+    assert_eq!(
+        e.to_string(),
+        "test.toml: `medium`: missing: a scene file needs a [medium] table (with `generator`, `file` or `vdb`)"
+    );
+    let e = parse(&format!(
+        "format = 1\n[medium\ngenerator = \"homogeneous\"\n{light}"
+    ))
+    .unwrap_err();
+    assert_eq!(e.field(), Some(""), "{e}");
+    assert_eq!(
+        e.to_string(),
+        "test.toml:2:8: TOML syntax error: unclosed table, expected `]`"
+    );
+    // Broken headers of other tables, and a broken value, are syntax errors at their line.
+    for (from, to, line) in [
+        ("[camera]", "[camera", 36),
+        (
+            "[[light]]\ntype = \"sphere\"",
+            "[[light]\ntype = \"sphere\"",
+            21,
+        ),
+        ("fov_y = 30.0", "fov_y = ", 41),
+    ] {
+        let e = broken(from, to);
+        assert_eq!(e.field(), Some(""), "{e}");
+        match &e {
+            SceneFileError::Invalid { line: l, .. } => assert_eq!(*l, Some(line), "{e}"),
+            other => panic!("{other}"),
+        }
+        assert!(e.to_string().contains("TOML syntax error"), "{e}");
+    }
+    // A missing key of a sub-table still names the table.
+    let e = broken("eye = [0.5, -3.0, 0.5]\n", "");
+    assert_eq!(e.field(), Some("camera"), "{e}");
+    assert!(e.to_string().contains("missing field `eye`"), "{e}");
+}
+
+/// Issue 13: messages about a light put "an" before a vowel.
+#[test]
+fn light_messages_use_the_right_article() {
+    let e = broken("radiance = 0.5", "radiance = 0.5\npower = 1.0");
+    assert_field(
+        &e,
+        "light[3].power",
+        None,
+        "not a parameter of an environment light",
+    );
+    let e = broken(
+        "type = \"environment\"\nradiance = 0.5",
+        "type = \"environment\"",
+    );
+    assert_field(
+        &e,
+        "light[3]",
+        None,
+        "an environment light needs `radiance`",
+    );
+    let e = broken("power = 2.0", "power = 2.0\nradius = 1.0");
+    assert_field(
+        &e,
+        "light[2].radius",
+        None,
+        "not a parameter of a point light",
+    );
+}
+
+/// Issue 13: values in field messages print compactly (`1e300`, not 301 digits).
+#[test]
+fn field_values_print_compactly() {
+    let e = broken("fov_y = 30.0", "fov_y = 1e300");
+    assert_field(&e, "camera.fov_y", Some(41), "1e300 is invalid");
+    let e = broken("radius = 0.1", "radius = -1e300");
+    assert_field(&e, "light[1].radius", Some(24), "-1e300 is invalid");
+    assert!(!e.to_string().contains("0000000000"), "{e}");
+}

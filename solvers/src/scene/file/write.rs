@@ -39,7 +39,7 @@ impl SceneFile {
                 field: "medium".into(),
                 line: None,
                 column: None,
-                problem: e.to_string(),
+                problem: crate::error::chain(&e),
             },
         };
         let write_field = |name: &str, values: &[f64]| -> Result<toml::Value, SceneFileError> {
