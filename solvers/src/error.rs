@@ -111,6 +111,19 @@ pub enum SolverError {
         /// What is allowed.
         reason: &'static str,
     },
+    /// An explicit time step above the stability bound it is checked against (the RDE's
+    /// fixed r above the Gershgorin bound, or above thesis Eq 4.9 in the strict mode).
+    #[error("parameter `{name}` = {value} exceeds {criterion} = {bound}")]
+    StepAboveBound {
+        /// Parameter name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// The bound it exceeds.
+        bound: f64,
+        /// Which bound, in words.
+        criterion: &'static str,
+    },
     /// The flux limiter name could not be parsed.
     #[error(
         "unknown flux limiter `{0}`; expected one of cda, sum, max, kershaw, larsen<n> (e.g. larsen2), lp"

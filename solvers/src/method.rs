@@ -385,7 +385,12 @@ pub struct MethodFamily {
 }
 
 /// Every method family. Add one line per family.
-pub static METHODS: &[MethodFamily] = &[crate::fld::CDA, crate::fld::FLD, crate::lbm::LBM];
+pub static METHODS: &[MethodFamily] = &[
+    crate::fld::CDA,
+    crate::fld::FLD,
+    crate::lbm::LBM,
+    crate::rde::RDE,
+];
 
 /// The names of every family, with their variants, for help texts and errors: `cda, fld[:…], lbm`.
 pub fn names() -> String {

@@ -24,6 +24,7 @@ method_conformance!(
     cda: "cda",
     fld_lp: "fld:lp",
     lbm: "lbm",
+    rde: "rde",
 );
 
 /// Every family of the registry has a `method_conformance!` line above.

@@ -13,6 +13,7 @@
 //! Per voxel and pass (FLD Algorithm 1): R by Eqs 34–35, D_p by Eq 33, D_ps = (D_p + D_s)/2,
 //! φ'_p by Eq 32, SOR by Eq 36, residual by Eq 37 (before the update; see [`super`]).
 
+use super::residual::ResidualWindow;
 use super::{Boundary, FldConfig, FldSolution, FluxLimiter, KnudsenSigma};
 use crate::gpu::Timer;
 use crate::method::Stop;
@@ -157,9 +158,7 @@ impl<T: Real> CpuFld<T> {
                 }
             }
         }
-        let margin = config.residual_margin;
-        let inner = |n: usize| n.saturating_sub(2 + 2 * margin);
-        let mut residual_count = inner(nx) * inner(ny) * inner(nz);
+        let window = ResidualWindow::new(&grid, config.residual_margin);
         let tolerance = config.tolerance.unwrap_or(T::DEFAULT_TOLERANCE);
         let omega = T::c(config.omega);
         let mut s = Self {
@@ -182,18 +181,13 @@ impl<T: Real> CpuFld<T> {
             },
             tolerance,
             j_ref,
-            residual_count: 0,
+            residual_count: window.count,
             iterations: 0,
             residuals: Vec::new(),
             setup_seconds: 0.0,
             trivial,
         };
-        if residual_count == 0 {
-            // Grid too small for the margin: fall back to every interior voxel.
-            s.config.residual_margin = 0;
-            residual_count = (nx - 2) * (ny - 2) * (nz - 2);
-        }
-        s.residual_count = residual_count;
+        s.config.residual_margin = window.margin;
         s.setup_seconds = t0.elapsed().as_secs_f64();
         Ok(s)
     }
@@ -272,7 +266,7 @@ impl<T: Real> CpuFld<T> {
         }
         let sumsq = self.pass(0) + self.pass(1);
         // Normalised units: j̄ = 1 inside the solve.
-        let r = (sumsq / self.residual_count as f64).sqrt();
+        let r = ResidualWindow::new(&self.grid, self.config.residual_margin).rms(sumsq);
         self.iterations += 1;
         self.residuals.push(r);
         r
@@ -413,15 +407,8 @@ impl<T: Real> CpuFld<T> {
         let h = self.h;
         let slab = ny * h;
         let p = self.params;
-        let margin = self.config.residual_margin;
-        let (lo, hi) = (
-            1 + margin,
-            [
-                nx - 2 - margin.min(nx - 2),
-                ny - 2 - margin.min(ny - 2),
-                nz - 2 - margin.min(nz - 2),
-            ],
-        );
+        let window = ResidualWindow::new(&self.grid, self.config.residual_margin);
+        let (lo, hi) = (window.lo, window.hi);
         let [phi0, phi1] = &mut self.phi;
         let [d0, d1] = &mut self.d;
         let (phi_c, phi_o, d_c, d_o) = if c == 0 {
@@ -447,7 +434,7 @@ impl<T: Real> CpuFld<T> {
                     let g = (k * ny + j) * h;
                     let rows = Rows::around(phi_o, g, h, slab);
                     let drows = Rows::around(d_o, g, h, slab);
-                    let counted_row = (lo..=hi[1]).contains(&j) && (lo..=hi[2]).contains(&k);
+                    let counted_row = window.counts_row(j, k);
                     // Interior i = 2m + s ∈ [1, nx − 2].
                     let m_lo = 1 - s;
                     let m_hi = (nx - 2 - s) / 2;

@@ -198,15 +198,8 @@ impl<'a> GpuFld<'a> {
         let bgroups = bcount.div_ceil(WG_BOUNDARY).max(1);
         let boundary_groups = ctx.split_workgroups("the FLD boundary-layer update", bgroups)?;
         let check_every = 32u32;
-        let margin = host.residual_margin();
-        let (lo, hi) = (
-            1 + margin,
-            [
-                nx - 2 - margin.min(nx - 2),
-                ny - 2 - margin.min(ny - 2),
-                nz - 2 - margin.min(nz - 2),
-            ],
-        );
+        let window = super::residual::ResidualWindow::new(&grid, host.residual_margin());
+        let (lo, hi) = (window.lo, window.hi);
         let p = host.params();
         let base = GpuParams {
             nx: nx as u32,

@@ -54,6 +54,7 @@ pub mod cpu;
 pub mod gpu;
 pub mod limiter;
 pub mod method;
+pub(crate) mod residual;
 
 pub use cpu::CpuFld;
 pub use gpu::GpuFld;
