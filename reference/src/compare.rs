@@ -33,6 +33,36 @@ pub struct ImageEstimate {
 }
 
 impl ImageEstimate {
+    /// A deterministic image (a grid render, an exact solution): standard errors 0, exact.
+    pub fn exact(width: usize, height: usize, mean: Vec<f64>) -> Self {
+        let n = mean.len();
+        Self {
+            width,
+            height,
+            mean,
+            stderr: vec![0.0; n],
+            dof: f64::INFINITY,
+        }
+    }
+
+    /// A Monte Carlo image whose standard errors come from `batches` batch means
+    /// (`batches − 1` degrees of freedom).
+    pub fn batched(
+        width: usize,
+        height: usize,
+        mean: Vec<f64>,
+        stderr: Vec<f64>,
+        batches: u32,
+    ) -> Self {
+        Self {
+            width,
+            height,
+            mean,
+            stderr,
+            dof: f64::from(batches.max(2) - 1),
+        }
+    }
+
     /// Mean over all pixels and its standard error √(Σ sᵢ²)/N.
     pub fn image_mean(&self) -> (f64, f64) {
         let n = self.mean.len().max(1) as f64;

@@ -60,20 +60,8 @@ fn emission_only_matches_the_path_tracer_within_error_bars() {
     assert_eq!(pt.renders.len(), 1);
     assert_eq!(pt.renders[0].1, Contributions::emission_only());
     let (w, h) = (r.width, r.height);
-    let ours = ImageEstimate {
-        width: w,
-        height: h,
-        mean: r.channels[0].total.clone(),
-        stderr: vec![0.0; w * h],
-        dof: f64::INFINITY,
-    };
-    let theirs = ImageEstimate {
-        width: w,
-        height: h,
-        mean: pt.total.mean.clone(),
-        stderr: pt.total.stderr.clone(),
-        dof: 15.0,
-    };
+    let ours = ImageEstimate::exact(w, h, r.channels[0].total.clone());
+    let theirs = ImageEstimate::batched(w, h, pt.total.mean.clone(), pt.total.stderr.clone(), 16);
     let c = compare(&ours, &theirs, 0.01).unwrap();
     eprintln!(
         "pixels passing {:.4}, image means {:?} vs {:?}, rel diff {:.2e}, mean z {:.2}",
@@ -147,20 +135,8 @@ fn single_scattering_matches_the_path_tracer_within_error_bars() {
     let share = unseen / r.channels[0].single.iter().sum::<f64>();
     eprintln!("pixels the path tracer never reached: {share:.2e} of our image");
     assert!(share < 0.01);
-    let ours = ImageEstimate {
-        width: w,
-        height: h,
-        mean,
-        stderr: vec![0.0; w * h],
-        dof: f64::INFINITY,
-    };
-    let theirs = ImageEstimate {
-        width: w,
-        height: h,
-        mean: pt.single.mean.clone(),
-        stderr: pt.single.stderr.clone(),
-        dof: 15.0,
-    };
+    let ours = ImageEstimate::exact(w, h, mean);
+    let theirs = ImageEstimate::batched(w, h, pt.single.mean.clone(), pt.single.stderr.clone(), 16);
     let c = compare(&ours, &theirs, 0.01).unwrap();
     eprintln!(
         "single: pixels passing {:.4}, image means {:?} vs {:?}, rel diff {:.2e}, mean z {:.2}",

@@ -79,20 +79,9 @@ fn single_scattering_of_dense_voxels_matches_the_path_tracer_at_the_default_step
         )
         .unwrap();
         let (w, h) = (r.width, r.height);
-        let ours = ImageEstimate {
-            width: w,
-            height: h,
-            mean: r.channels[0].total.clone(),
-            stderr: vec![0.0; w * h],
-            dof: f64::INFINITY,
-        };
-        let theirs = ImageEstimate {
-            width: w,
-            height: h,
-            mean: pt.total.mean.clone(),
-            stderr: pt.total.stderr.clone(),
-            dof: 15.0,
-        };
+        let ours = ImageEstimate::exact(w, h, r.channels[0].total.clone());
+        let theirs =
+            ImageEstimate::batched(w, h, pt.total.mean.clone(), pt.total.stderr.clone(), 16);
         let c = compare(&ours, &theirs, 0.01).unwrap();
         eprintln!(
             "σt·Δl = {tau_voxel}: pixels passing {:.4}, means {:.5e} vs {:.5e} ± {:.1e}, \

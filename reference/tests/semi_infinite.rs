@@ -72,20 +72,8 @@ fn reflection_of_a_dense_half_space_matches_chandrasekhar() {
         let exact =
             c * h_function(c, mu).unwrap() * h_function(c, 1.0).unwrap() / (4.0 * PI * (mu + 1.0));
         let n = img.width * img.height;
-        let ours = ImageEstimate {
-            width: img.width,
-            height: img.height,
-            mean: img.mean.clone(),
-            stderr: img.stderr.clone(),
-            dof: 15.0,
-        };
-        let truth = ImageEstimate {
-            width: img.width,
-            height: img.height,
-            mean: vec![exact; n],
-            stderr: vec![0.0; n],
-            dof: f64::INFINITY,
-        };
+        let ours = ImageEstimate::batched(img.width, img.height, img.mean.clone(), img.stderr, 16);
+        let truth = ImageEstimate::exact(img.width, img.height, vec![exact; n]);
         let cmp = compare(&ours, &truth, 0.01).unwrap();
         eprintln!(
             "c = {c}: mean {:.6} ± {:.1e} vs exact {exact:.6}, z {:+.2}, pixels passing {:.3}",
