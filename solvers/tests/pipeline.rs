@@ -196,12 +196,13 @@ fn single_scattering_error(n: usize, step: f64, phase: Phase, shadows: Shadows) 
 ///
 /// Exact shadow rays: each sub-step is integrated exactly for a depth linear along it, and a
 /// sub-step holding the kink is bisected until the depth is linear within
-/// `raymarch::TAU_LINEARITY` (10⁻⁴), so the result is exact up to that, whatever the grid and
-/// the step (measured worst relative error over the pixels, isotropic and HG g = 0.6 alike:
-/// 1.4e-8 at 16³, 32³ and 64³ with step 0.5, 5.0e-9 at 32³ with step 0.1; with the midpoint
-/// rule before, 6.4e-3, 1.6e-3, 4.1e-4 and 6.7e-5). Deep shadow map: τ interpolated between
-/// centres, second order at the kink (9.5e-3, 2.5e-3, 4.5e-4 at 16³, 32³, 64³). Asserted
-/// with margin, and the order of convergence of the deep shadow map.
+/// `raymarch::TAU_LINEARITY` (10⁻²), so the error is set by that threshold, not by the grid
+/// or the step (measured worst relative error over the pixels, isotropic and HG g = 0.6
+/// alike: 2.2e-4 at 16³ and 32³, 1.2e-4 at 64³ with step 0.5, 3.7e-5 at 32³ with step 0.1;
+/// 1.4e-8 everywhere at a threshold of 10⁻⁴; with the midpoint rule before, 6.4e-3, 1.6e-3,
+/// 4.1e-4 and 6.7e-5). Deep shadow map: τ interpolated between centres, second order at the
+/// kink (9.5e-3, 2.9e-3 at 16³, 32³). Asserted with margin, and the order of convergence of
+/// the deep shadow map.
 #[test]
 fn single_scattering_matches_the_closed_form_in_a_homogeneous_box() {
     for phase in [Phase::Isotropic, Phase::HenyeyGreenstein { g: 0.6 }] {
@@ -214,7 +215,7 @@ fn single_scattering_matches_the_closed_form_in_a_homogeneous_box() {
             ("64³", e64),
             ("32³ step 0.1", e32_fine),
         ] {
-            assert!(e < 1e-6, "{phase:?} {what}: relative error {e}");
+            assert!(e < 5e-4, "{phase:?} {what}: relative error {e}");
         }
         let dsm = |n| single_scattering_error(n, 0.5, phase, Shadows::DeepShadowMap);
         let (d16, d32) = (dsm(16), dsm(32));
