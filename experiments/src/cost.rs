@@ -25,7 +25,8 @@
 //! against the measured wall time of the committed results on this machine:
 //! `point_source` 1.5·10¹¹ (70 min; ran 4 min: the solve model takes the slowest case for
 //! all), `lbm_diffusion_limit` 9.9·10¹⁰ (46 min; 43 s, the step cap), `accuracy_cost`
-//! 2.6·10¹⁰ (12 min; 6.7 min), `renderings` 1.1·10¹⁰ (4.9 min; 2.1 min), `pt_point_source`
+//! 3.1·10¹⁰ with RDE (14.3 min; 14.3 min, partly beside a CI run), `renderings` 1.1·10¹⁰
+//! (4.9 min; 2.6 min), `pt_point_source`
 //! 4.6·10⁹ (2.1 min; 2.1 min), `pt_render` 4.1·10⁸ (11 s; 12 s). So the largest is 29 % of
 //! the 2-core budget. The test `tests/bounded.rs` refuses an absurd run of each binary and
 //! lets `--force` through.
