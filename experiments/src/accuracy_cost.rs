@@ -32,7 +32,7 @@ use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 pub use crate::scenes::{Prepared, errors, load, parse_resolution, render_reference, scene_paths};
 use anyhow::{Context, Result, bail};
-use reference::effects::{PtComponents, render_components};
+use reference::effects::{PtComponents, components_from_parts, render_components_part};
 use reference::pathtracer::{Contributions, RenderSettings};
 use serde::Serialize;
 use solvers::method::{MethodRef, Tolerance};
@@ -210,11 +210,14 @@ impl MethodEntry {
         }
     }
 
-    /// Renders one setting.
-    pub fn run(&self, job: &Job<'_>) -> Result<Run> {
+    /// Renders one setting. The path tracer's renders are [`Ctx::tally`]s: with `--shard`
+    /// they compute the shard's batches only and nothing comes back, and grid methods are
+    /// left to the merge (`None` too).
+    pub fn run(&self, job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
         match &self.renderer {
-            Renderer::PathTracer => run_pt(job),
-            Renderer::Pipeline(m) => run_grid(job, m),
+            Renderer::PathTracer => run_pt(job, ctx),
+            Renderer::Pipeline(_) if ctx.sharding() => Ok(None),
+            Renderer::Pipeline(m) => run_grid(job, m).map(Some),
         }
     }
 }
@@ -269,25 +272,44 @@ fn grid_settings(quick: bool, _spp: &[u32]) -> Vec<Setting> {
         .collect()
 }
 
-fn run_pt(job: &Job<'_>) -> Result<Run> {
+fn run_pt(job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
     let settings = RenderSettings {
         spp: job.setting.spp,
         seed: job.seed,
         batches: reference::pathtracer::MIN_BATCHES,
         contributions: Contributions::all(),
     };
-    let t0 = Instant::now();
     let mut images = Vec::new();
-    for ch in &job.scene.channels {
-        let c = render_components(ch, &job.scene.effects, &settings)
-            .context("path tracing a point of the atlas")?;
-        images.push(to_channel_images(&c));
+    let mut seconds = 0.0;
+    for (c, ch) in job.scene.channels.iter().enumerate() {
+        let what = format!(
+            "path tracer point of {} [{}], channel {c}",
+            job.scene.name, job.setting.label
+        );
+        let tallied = ctx.tally(
+            &what,
+            |shard| {
+                render_components_part(ch, &job.scene.effects, &settings, shard)
+                    .with_context(|| what.clone())
+            },
+            |parts| {
+                let s: f64 = parts.iter().map(|p| p.seconds).sum();
+                Ok((components_from_parts(ch, &job.scene.effects, parts)?, s))
+            },
+        )?;
+        if let Some((comp, s)) = tallied {
+            images.push(to_channel_images(&comp));
+            seconds += s;
+        }
     }
-    Ok(Run {
+    if ctx.sharding() {
+        return Ok(None);
+    }
+    Ok(Some(Run {
         images,
-        seconds: t0.elapsed().as_secs_f64(),
+        seconds,
         detail: format!("spp={}", settings.spp),
-    })
+    }))
 }
 
 fn to_channel_images(c: &PtComponents) -> ChannelImages {
@@ -538,7 +560,9 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     let mut points = Vec::new();
     let mut refs = Vec::new();
     for scene in &mut prepared {
-        render_reference(scene, ref_spp, args.seed)?;
+        if !render_reference(out, scene, ref_spp, args.seed)? && !out.sharding() {
+            bail!("the reference of {} is incomplete", scene.name);
+        }
         out.timing(format!("{}/reference", scene.name), scene.reference_seconds);
         let noise = scene.noise();
         refs.push(ReferenceRow {
@@ -568,7 +592,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                 backend: b,
                 seed: args.seed + 1000,
             };
-            let r = m.run(&job)?;
+            let Some(r) = m.run(&job, out)? else {
+                bar.inc(1);
+                continue;
+            };
             let (error, debiased, single, multiple) = errors(scene, &r.images);
             points.push(Point {
                 scene: scene.name.clone(),
@@ -600,7 +627,12 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             bar.inc(1);
         }
         bar.finish_and_clear();
-        plot_scene(out, &scene.name, &points)?;
+        if !out.sharding() {
+            plot_scene(out, &scene.name, &points)?;
+        }
+    }
+    if out.sharding() {
+        return Ok(points);
     }
     out.csv("points.csv", &points)?;
     out.csv("references.csv", &refs)?;
@@ -677,6 +709,7 @@ impl Experiment for AccuracyCost {
     const NAME: &'static str = "accuracy_cost";
     const TITLE: &'static str = "Accuracy vs time atlas";
     const BACKEND: BackendSupport = BackendSupport::Flag;
+    const SHARDS: bool = true;
     type Args = Args;
     type Summary = Vec<Point>;
 

@@ -26,6 +26,16 @@ pub struct CommonArgs {
     /// operations).
     #[arg(long)]
     pub force: bool,
+    /// Compute only shard `i` of `N` (0-based) of the run's Monte Carlo batches and write
+    /// them as `shard.bin` (default `--out`: `<default>.shard-i-of-N`); `merge` joins the N
+    /// shards into the files an unsharded run writes. Only Monte Carlo producers take it.
+    #[arg(long, value_parser = parse_shard)]
+    pub shard: Option<reference::pathtracer::Shard>,
+}
+
+fn parse_shard(s: &str) -> std::result::Result<reference::pathtracer::Shard, String> {
+    s.parse()
+        .map_err(|e: reference::ReferenceError| e.to_string())
 }
 
 /// Where the grid solvers run.
@@ -207,6 +217,7 @@ pub struct Ctx {
     timings: Vec<(String, f64)>,
     params: serde_json::Value,
     extra: serde_json::Map<String, serde_json::Value>,
+    mc: crate::shard::Mc,
 }
 
 /// The former name of [`Ctx`].
@@ -331,10 +342,29 @@ fn recover(target: &Path) -> Result<()> {
 impl Ctx {
     /// The context of experiment `name`: `args.out`, or [`default_out`] (not created yet).
     pub fn for_run(name: &str, args: &CommonArgs) -> Self {
-        let target = args
-            .out
-            .clone()
-            .unwrap_or_else(|| default_out(name, args.quick));
+        let target = args.out.clone().unwrap_or_else(|| {
+            let d = default_out(name, args.quick);
+            match args.shard {
+                Some(s) => {
+                    let file = d.file_name().map(|n| n.to_string_lossy().into_owned());
+                    d.with_file_name(format!(
+                        "{}.shard-{}-of-{}",
+                        file.unwrap_or_else(|| name.to_string()),
+                        s.index(),
+                        s.count()
+                    ))
+                }
+                None => d,
+            }
+        });
+        let mc = match args.shard {
+            Some(shard) => crate::shard::Mc::Shard {
+                shard,
+                argv: Vec::new(),
+                tallies: Vec::new(),
+            },
+            None => crate::shard::Mc::Whole,
+        };
         Self {
             dir: target.clone(),
             target,
@@ -348,6 +378,71 @@ impl Ctx {
             timings: Vec::new(),
             params: serde_json::Value::Null,
             extra: serde_json::Map::new(),
+            mc,
+        }
+    }
+
+    /// The producer's flags for a shard's header (`--out`/`--shard` are dropped).
+    pub fn set_argv(&mut self, argv: &[String]) {
+        if let crate::shard::Mc::Shard { argv: a, .. } = &mut self.mc {
+            *a = crate::shard::strip_flags(argv);
+        }
+    }
+
+    /// Serves this run's tallies from merged shards instead of computing them.
+    pub fn merge_from(&mut self, joined: crate::shard::Joined) {
+        self.mc = crate::shard::Mc::Merge {
+            tallies: joined.tallies,
+            provenance: joined.provenance,
+        };
+    }
+
+    /// Whether this run computes one shard (`--shard`): it then writes no results, only
+    /// its tallies, so a producer skips its output once every tally is taken.
+    pub fn sharding(&self) -> bool {
+        matches!(self.mc, crate::shard::Mc::Shard { .. })
+    }
+
+    /// The run's next Monte Carlo estimate, `label`led: `compute(shard)` returns the
+    /// per-batch sums of its parts for a shard's batches (the whole run: `Shard::WHOLE`),
+    /// `finish` turns joined sums into the estimate. A normal run computes and finishes;
+    /// with `--shard` the sums are kept for the shard file and `None` comes back; in a
+    /// merge the joined sums of the shards are finished (and `compute` never runs).
+    pub fn tally<T>(
+        &mut self,
+        label: &str,
+        compute: impl FnOnce(reference::pathtracer::Shard) -> Result<Vec<reference::effects::PassSums>>,
+        finish: impl FnOnce(&[reference::effects::PassSums]) -> Result<T>,
+    ) -> Result<Option<T>> {
+        use crate::shard::Mc;
+        match &mut self.mc {
+            Mc::Whole => {
+                let parts = compute(reference::pathtracer::Shard::WHOLE)?;
+                finish(&parts).map(Some)
+            }
+            Mc::Shard { shard, tallies, .. } => {
+                let parts = compute(*shard)?;
+                tallies.push(crate::shard::Tally {
+                    label: label.to_string(),
+                    parts,
+                });
+                Ok(None)
+            }
+            Mc::Merge { tallies, .. } => {
+                let Some(t) = tallies.pop_front() else {
+                    anyhow::bail!(
+                        "the shards hold fewer tallies than this run takes (next: `{label}`)"
+                    );
+                };
+                if t.label != label {
+                    anyhow::bail!(
+                        "the shards' next tally is `{}`, this run's is `{label}`: not shards \
+                         of this run",
+                        t.label
+                    );
+                }
+                finish(&t.parts).map(Some)
+            }
         }
     }
 
@@ -443,7 +538,15 @@ impl Ctx {
     /// Checks the run's cost estimate against the work budget (refused unless `--force`)
     /// and records it in `meta.json` as `work_estimate`. Call it before the work starts.
     pub fn work(&mut self, estimate: &crate::cost::Estimate) -> Result<()> {
-        estimate.check(self.force)?;
+        match &self.mc {
+            crate::shard::Mc::Whole => estimate.check(self.force)?,
+            // A shard does its part of the Monte Carlo (which dominates every producer).
+            crate::shard::Mc::Shard { shard, .. } => {
+                estimate.per_shard(shard.count()).check(self.force)?
+            }
+            // The shards did the Monte Carlo; a merge was accepted when they were.
+            crate::shard::Mc::Merge { .. } => {}
+        }
         self.record("work_estimate", estimate.meta());
         Ok(())
     }
@@ -530,6 +633,38 @@ impl Ctx {
         });
         if let Some(m) = meta.as_object_mut() {
             m.extend(self.extra.clone());
+        }
+        match std::mem::take(&mut self.mc) {
+            crate::shard::Mc::Whole => {}
+            crate::shard::Mc::Shard {
+                shard,
+                argv,
+                tallies,
+            } => {
+                if tallies.is_empty() {
+                    anyhow::bail!("{}: this run has no Monte Carlo tally to shard", self.name);
+                }
+                let header = crate::shard::header(&self.name, &argv, shard, &tallies);
+                if let Some(m) = meta.as_object_mut() {
+                    m.insert("shard".into(), serde_json::json!(shard.to_string()));
+                }
+                crate::shard::write(&self.path(crate::shard::SHARD_FILE), &header, &tallies)?;
+            }
+            crate::shard::Mc::Merge {
+                tallies,
+                provenance,
+            } => {
+                if let Some(t) = tallies.front() {
+                    anyhow::bail!(
+                        "the shards hold tallies this run did not take (first: `{}`): not \
+                         shards of this run",
+                        t.label
+                    );
+                }
+                if let Some(m) = meta.as_object_mut() {
+                    m.insert("merged_from".into(), provenance);
+                }
+            }
         }
         let path = self.path("meta.json");
         std::fs::write(&path, serde_json::to_string_pretty(&meta)?)

@@ -66,6 +66,18 @@ impl Estimate {
         self
     }
 
+    /// Every part divided by `n` (one of `n` shards of a run whose cost is its Monte Carlo).
+    pub fn per_shard(&self, n: u32) -> Estimate {
+        let k = f64::from(n.max(1));
+        Estimate {
+            parts: self
+                .parts
+                .iter()
+                .map(|(w, v)| (format!("{w} (1/{n} shard)"), v / k))
+                .collect(),
+        }
+    }
+
     /// The total in operations.
     pub fn total(&self) -> f64 {
         self.parts.iter().map(|(_, v)| v).sum()

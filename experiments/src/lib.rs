@@ -28,4 +28,5 @@ pub mod render;
 pub mod renderings;
 pub mod report;
 pub mod scenes;
+pub mod shard;
 pub mod transport_references;
