@@ -31,6 +31,25 @@ pub struct CommonArgs {
     /// shards into the files an unsharded run writes. Only Monte Carlo producers take it.
     #[arg(long, value_parser = parse_shard)]
     pub shard: Option<reference::pathtracer::Shard>,
+    /// Print the run's cost estimate (one JSON line: operations, and seconds on one core at
+    /// the nominal rate; for `--shard`, one shard's part) and exit without running it.
+    /// `slurm/submit` sizes its time requests from it.
+    #[arg(long)]
+    pub estimate: bool,
+}
+
+/// Returned by [`Ctx::work`] under `--estimate` once the estimate is printed: the binaries
+/// exit 0 on it.
+#[derive(Debug, thiserror::Error)]
+#[error("--estimate: the estimate is printed, the run is not made")]
+pub struct EstimateOnly;
+
+/// A binary's result with [`EstimateOnly`] turned into success.
+pub fn estimate_ok(r: Result<()>) -> Result<()> {
+    match r {
+        Err(e) if e.downcast_ref::<EstimateOnly>().is_some() => Ok(()),
+        other => other,
+    }
 }
 
 fn parse_shard(s: &str) -> std::result::Result<reference::pathtracer::Shard, String> {
@@ -213,6 +232,7 @@ pub struct Ctx {
     quick: bool,
     no_progress: bool,
     force: bool,
+    estimate: bool,
     started: Instant,
     timings: Vec<(String, f64)>,
     params: serde_json::Value,
@@ -374,6 +394,7 @@ impl Ctx {
             quick: args.quick,
             no_progress: args.no_progress,
             force: args.force,
+            estimate: args.estimate,
             started: Instant::now(),
             timings: Vec::new(),
             params: serde_json::Value::Null,
@@ -538,6 +559,23 @@ impl Ctx {
     /// Checks the run's cost estimate against the work budget (refused unless `--force`)
     /// and records it in `meta.json` as `work_estimate`. Call it before the work starts.
     pub fn work(&mut self, estimate: &crate::cost::Estimate) -> Result<()> {
+        if self.estimate {
+            let mine = match &self.mc {
+                crate::shard::Mc::Shard { shard, .. } => estimate.per_shard(shard.count()),
+                _ => estimate.clone(),
+            };
+            let ops = mine.total();
+            println!(
+                "{}",
+                serde_json::json!({
+                    "experiment": self.name,
+                    "operations": ops,
+                    "seconds_one_core": ops / crate::cost::NOMINAL_RATE,
+                    "nominal_rate_per_core": crate::cost::NOMINAL_RATE,
+                })
+            );
+            return Err(EstimateOnly.into());
+        }
         match &self.mc {
             crate::shard::Mc::Whole => estimate.check(self.force)?,
             // A shard does its part of the Monte Carlo (which dominates every producer).

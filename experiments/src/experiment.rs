@@ -175,7 +175,7 @@ pub fn main<X: Experiment>() -> Result<()> {
     use clap::Parser as _;
     let args = X::Args::parse();
     let argv: Vec<String> = std::env::args().skip(1).collect();
-    run_with::<X>(&args, Some(&argv), None).map(|_| ())
+    crate::common::estimate_ok(run_with::<X>(&args, Some(&argv), None).map(|_| ()))
 }
 
 /// The `main` of an experiment's binary: `experiments::experiment_main!(point_source::PointSource);`.

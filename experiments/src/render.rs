@@ -201,7 +201,7 @@ pub fn main() -> Result<()> {
     use clap::Parser as _;
     let args = Args::parse();
     let argv: Vec<String> = std::env::args().skip(1).collect();
-    run_with(&args, Some(&argv), None).map(|_| ())
+    crate::common::estimate_ok(run_with(&args, Some(&argv), None).map(|_| ()))
 }
 
 /// Parses `argv` (flags only) and runs it as the merge of `joined`.
