@@ -32,7 +32,8 @@ use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 pub use crate::scenes::{Prepared, errors, load, parse_resolution, render_reference, scene_paths};
 use anyhow::{Context, Result, bail};
-use reference::effects::{PtComponents, components_from_parts, render_components_part};
+use reference::effects::{PassSums, PtComponents, components_from_parts, render_components_part};
+use reference::pathtracer::BatchSums;
 use reference::pathtracer::{Contributions, RenderSettings};
 use serde::Serialize;
 use solvers::method::{MethodRef, Tolerance};
@@ -115,6 +116,15 @@ pub struct Args {
     /// Seed of the reference (the path tracer's points use seed + 1000).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Print the sweep's tasks, one line each (`K<TAB>scene<TAB>method<TAB>setting<TAB>backend`;
+    /// each scene's reference is a task), and exit.
+    #[arg(long)]
+    pub list_tasks: bool,
+    /// Run only task K of `--list-tasks` (default `--out`: `<default>.task-K`); its result
+    /// goes to `shard.bin`, and `merge` assembles every task's into `points.csv`,
+    /// `fastest.csv`, the plots and the README section as a single run writes them.
+    #[arg(long)]
+    pub task: Option<u32>,
 }
 
 /// One point of the atlas.
@@ -216,8 +226,20 @@ impl MethodEntry {
     pub fn run(&self, job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
         match &self.renderer {
             Renderer::PathTracer => run_pt(job, ctx),
-            Renderer::Pipeline(_) if ctx.sharding() => Ok(None),
-            Renderer::Pipeline(m) => run_grid(job, m).map(Some),
+            Renderer::Pipeline(m) => {
+                let label = format!(
+                    "{} {m} [{}] {}",
+                    job.scene.name, job.setting.label, job.backend
+                );
+                ctx.deterministic(
+                    &label,
+                    || {
+                        let r = run_grid(job, m)?;
+                        Ok((encode_images(&r.images, r.seconds), r.detail))
+                    },
+                    |parts, note| decode_images(parts, note),
+                )
+            }
         }
     }
 }
@@ -310,6 +332,54 @@ fn run_pt(job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
         seconds,
         detail: format!("spp={}", settings.spp),
     }))
+}
+
+/// A grid run's images as exact f64 arrays for a `--task` result: per channel, total,
+/// single, multiple and emission; the run's seconds with the first.
+fn encode_images(images: &[ChannelImages], seconds: f64) -> Vec<PassSums> {
+    let one = |v: &Vec<f64>, seconds: f64| PassSums {
+        sums: BatchSums {
+            bins: v.len(),
+            total_batches: 1,
+            total_samples: 1,
+            first: 0,
+            sizes: vec![1],
+            sums: v.clone(),
+        },
+        seconds,
+    };
+    let mut out = Vec::with_capacity(4 * images.len());
+    for (c, im) in images.iter().enumerate() {
+        let s = if c == 0 { seconds } else { 0.0 };
+        out.push(one(&im.total, s));
+        out.push(one(&im.single, 0.0));
+        out.push(one(&im.multiple, 0.0));
+        out.push(one(&im.emission, 0.0));
+    }
+    out
+}
+
+/// The inverse of [`encode_images`].
+fn decode_images(parts: &[PassSums], detail: &str) -> Result<Run> {
+    if parts.len() % 4 != 0 {
+        bail!(
+            "a grid task result holds {} arrays, not 4 per channel",
+            parts.len()
+        );
+    }
+    Ok(Run {
+        images: parts
+            .chunks(4)
+            .map(|p| ChannelImages {
+                total: p[0].sums.sums.clone(),
+                single: p[1].sums.sums.clone(),
+                multiple: p[2].sums.sums.clone(),
+                emission: p[3].sums.sums.clone(),
+            })
+            .collect(),
+        seconds: parts.first().map_or(0.0, |p| p.seconds),
+        detail: detail.to_string(),
+    })
 }
 
 fn to_channel_images(c: &PtComponents) -> ChannelImages {
@@ -552,6 +622,33 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             }
         }
     }
+    let mut jobs = Vec::new();
+    for m in &methods {
+        for s in m.settings(quick, &spp) {
+            for b in backends.list(s.precision) {
+                if !m.renderer.supports(&b, s.precision) {
+                    continue;
+                }
+                jobs.push((m, s.clone(), b));
+            }
+        }
+    }
+    let tasks = prepared.len() * (1 + jobs.len());
+    if args.list_tasks {
+        let mut k = 0;
+        for scene in &prepared {
+            println!("{k}\t{}\treference\tspp={ref_spp}\tcpu-f64", scene.name);
+            k += 1;
+            for (m, s, b) in &jobs {
+                println!("{k}\t{}\t{}\t{}\t{b}", scene.name, m.name, s.label);
+                k += 1;
+            }
+        }
+        return Err(crate::common::PrintOnly("--list-tasks").into());
+    }
+    if let Some(k) = args.task {
+        ctx.set_task(k, u32::try_from(tasks).unwrap_or(u32::MAX))?;
+    }
     ctx.work(&work)?;
     ctx.start(params)?;
     let out = ctx;
@@ -560,6 +657,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     let mut points = Vec::new();
     let mut refs = Vec::new();
     for scene in &mut prepared {
+        out.unit();
         if !render_reference(out, scene, ref_spp, args.seed)? && !out.sharding() {
             bail!("the reference of {} is incomplete", scene.name);
         }
@@ -573,19 +671,12 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             channels: scene.channels.len(),
             effects: scene.effects.names(),
         });
-        let mut jobs = Vec::new();
-        for m in &methods {
-            for s in m.settings(quick, &spp) {
-                for b in backends.list(s.precision) {
-                    if !m.renderer.supports(&b, s.precision) {
-                        continue;
-                    }
-                    jobs.push((m, s.clone(), b));
-                }
-            }
-        }
         let bar = progress(jobs.len() as u64, &args.common, &scene.name);
         for (m, s, b) in &jobs {
+            if !out.unit() {
+                bar.inc(1);
+                continue;
+            }
             let job = Job {
                 scene,
                 setting: s,

@@ -38,16 +38,16 @@ pub struct CommonArgs {
     pub estimate: bool,
 }
 
-/// Returned by [`Ctx::work`] under `--estimate` once the estimate is printed: the binaries
-/// exit 0 on it.
+/// Returned when a run only prints what was asked (`--estimate` from [`Ctx::work`],
+/// `--list-tasks`) and is not made: the binaries exit 0 on it.
 #[derive(Debug, thiserror::Error)]
-#[error("--estimate: the estimate is printed, the run is not made")]
-pub struct EstimateOnly;
+#[error("{0}: printed, the run is not made")]
+pub struct PrintOnly(pub &'static str);
 
-/// A binary's result with [`EstimateOnly`] turned into success.
+/// A binary's result with [`PrintOnly`] turned into success.
 pub fn estimate_ok(r: Result<()>) -> Result<()> {
     match r {
-        Err(e) if e.downcast_ref::<EstimateOnly>().is_some() => Ok(()),
+        Err(e) if e.downcast_ref::<PrintOnly>().is_some() => Ok(()),
         other => other,
     }
 }
@@ -233,6 +233,8 @@ pub struct Ctx {
     no_progress: bool,
     force: bool,
     estimate: bool,
+    out_given: bool,
+    argv: Option<Vec<String>>,
     started: Instant,
     timings: Vec<(String, f64)>,
     params: serde_json::Value,
@@ -382,6 +384,7 @@ impl Ctx {
                 shard,
                 argv: Vec::new(),
                 tallies: Vec::new(),
+                task: None,
             },
             None => crate::shard::Mc::Whole,
         };
@@ -395,6 +398,8 @@ impl Ctx {
             no_progress: args.no_progress,
             force: args.force,
             estimate: args.estimate,
+            out_given: args.out.is_some(),
+            argv: None,
             started: Instant::now(),
             timings: Vec::new(),
             params: serde_json::Value::Null,
@@ -403,8 +408,10 @@ impl Ctx {
         }
     }
 
-    /// The producer's flags for a shard's header (`--out`/`--shard` are dropped).
+    /// The run's command-line flags, for a shard's or task's header (`--out`, `--shard`,
+    /// `--task` and cosmetic flags are dropped there).
     pub fn set_argv(&mut self, argv: &[String]) {
+        self.argv = Some(argv.to_vec());
         if let crate::shard::Mc::Shard { argv: a, .. } = &mut self.mc {
             *a = crate::shard::strip_flags(argv);
         }
@@ -415,11 +422,64 @@ impl Ctx {
         self.mc = crate::shard::Mc::Merge {
             tallies: joined.tallies,
             provenance: joined.provenance,
+            from_tasks: joined.from_tasks,
         };
     }
 
-    /// Whether this run computes one shard (`--shard`): it then writes no results, only
-    /// its tallies, so a producer skips its output once every tally is taken.
+    /// Makes this a `--task K` run of a sweep of `count` tasks (before [`Ctx::start`]): only
+    /// unit K ([`Ctx::unit`]) is computed, whole, and written as `shard.bin` for `merge`.
+    /// Without `--out`, the output goes to `<default>.task-K`.
+    pub fn set_task(&mut self, index: u32, count: u32) -> Result<()> {
+        if index >= count {
+            anyhow::bail!(
+                "--task {index}: this sweep has {count} tasks (0 … {}; see --list-tasks)",
+                count.saturating_sub(1)
+            );
+        }
+        if !matches!(self.mc, crate::shard::Mc::Whole) {
+            anyhow::bail!("--task cannot be combined with --shard");
+        }
+        let Some(argv) = self.argv.clone() else {
+            anyhow::bail!("--task needs the command line (run the binary)");
+        };
+        if !self.out_given {
+            let file = self
+                .target
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| self.name.clone());
+            self.target = self.target.with_file_name(format!("{file}.task-{index}"));
+            self.dir = self.target.clone();
+        }
+        self.mc = crate::shard::Mc::Shard {
+            shard: reference::pathtracer::Shard::WHOLE,
+            argv: crate::shard::strip_task(&crate::shard::strip_flags(&argv)),
+            tallies: Vec::new(),
+            task: Some(crate::shard::TaskSel {
+                index,
+                count,
+                seen: 0,
+            }),
+        };
+        Ok(())
+    }
+
+    /// Starts the next unit of a sweep (one line of `--list-tasks`); returns whether this
+    /// run computes it (always, except in a `--task K` run: only unit K).
+    pub fn unit(&mut self) -> bool {
+        match &mut self.mc {
+            crate::shard::Mc::Shard { task: Some(t), .. } => {
+                let mine = t.seen == t.index;
+                t.seen += 1;
+                mine
+            }
+            _ => true,
+        }
+    }
+
+    /// Whether this run computes one shard (`--shard`) or one task (`--task`): it then
+    /// writes no results, only its tallies, so a producer skips its output once every
+    /// tally is taken.
     pub fn sharding(&self) -> bool {
         matches!(self.mc, crate::shard::Mc::Shard { .. })
     }
@@ -441,11 +501,21 @@ impl Ctx {
                 let parts = compute(reference::pathtracer::Shard::WHOLE)?;
                 finish(&parts).map(Some)
             }
-            Mc::Shard { shard, tallies, .. } => {
+            Mc::Shard {
+                shard,
+                tallies,
+                task,
+                ..
+            } => {
+                // In a `--task K` run, only unit K's tallies are computed.
+                if task.is_some_and(|t| t.seen != t.index + 1) {
+                    return Ok(None);
+                }
                 let parts = compute(*shard)?;
                 tallies.push(crate::shard::Tally {
                     label: label.to_string(),
                     parts,
+                    note: String::new(),
                 });
                 Ok(None)
             }
@@ -463,6 +533,65 @@ impl Ctx {
                     );
                 }
                 finish(&t.parts).map(Some)
+            }
+        }
+    }
+
+    /// A deterministic unit of a sweep (a grid render of the atlas), `label`led:
+    /// `compute` returns its result as exact f64 arrays and a note, `finish` rebuilds it.
+    /// A normal run computes and finishes; a `--task K` run computes and keeps it when it
+    /// is unit K (else skips it); a `--shard` run skips it (the merge computes it); a merge
+    /// of tasks finishes the stored result, a merge of shards computes it.
+    pub fn deterministic<T>(
+        &mut self,
+        label: &str,
+        compute: impl FnOnce() -> Result<(Vec<reference::effects::PassSums>, String)>,
+        finish: impl FnOnce(&[reference::effects::PassSums], &str) -> Result<T>,
+    ) -> Result<Option<T>> {
+        use crate::shard::Mc;
+        match &mut self.mc {
+            Mc::Whole
+            | Mc::Merge {
+                from_tasks: false, ..
+            } => {
+                let (parts, note) = compute()?;
+                finish(&parts, &note).map(Some)
+            }
+            Mc::Shard { task: None, .. } => Ok(None),
+            Mc::Shard {
+                task: Some(t),
+                tallies,
+                ..
+            } => {
+                if t.seen != t.index + 1 {
+                    return Ok(None);
+                }
+                let (parts, note) = compute()?;
+                tallies.push(crate::shard::Tally {
+                    label: label.to_string(),
+                    parts,
+                    note,
+                });
+                Ok(None)
+            }
+            Mc::Merge {
+                tallies,
+                from_tasks: true,
+                ..
+            } => {
+                let Some(t) = tallies.pop_front() else {
+                    anyhow::bail!(
+                        "the tasks hold fewer results than this run takes (next: `{label}`)"
+                    );
+                };
+                if t.label != label {
+                    anyhow::bail!(
+                        "the tasks' next result is `{}`, this run's is `{label}`: not tasks of \
+                         this sweep",
+                        t.label
+                    );
+                }
+                finish(&t.parts, &t.note).map(Some)
             }
         }
     }
@@ -574,7 +703,7 @@ impl Ctx {
                     "nominal_rate_per_core": crate::cost::NOMINAL_RATE,
                 })
             );
-            return Err(EstimateOnly.into());
+            return Err(PrintOnly("--estimate").into());
         }
         match &self.mc {
             crate::shard::Mc::Whole => estimate.check(self.force)?,
@@ -678,11 +807,12 @@ impl Ctx {
                 shard,
                 argv,
                 tallies,
+                task,
             } => {
-                if tallies.is_empty() {
+                if tallies.is_empty() && task.is_none() {
                     anyhow::bail!("{}: this run has no Monte Carlo tally to shard", self.name);
                 }
-                let header = crate::shard::header(&self.name, &argv, shard, &tallies);
+                let header = crate::shard::header(&self.name, &argv, shard, task, &tallies);
                 if let Some(m) = meta.as_object_mut() {
                     m.insert("shard".into(), serde_json::json!(shard.to_string()));
                 }
@@ -691,6 +821,7 @@ impl Ctx {
             crate::shard::Mc::Merge {
                 tallies,
                 provenance,
+                ..
             } => {
                 if let Some(t) = tallies.front() {
                     anyhow::bail!(

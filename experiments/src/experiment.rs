@@ -150,9 +150,11 @@ pub fn run_with<X: Experiment>(
                 producers().join(", ")
             );
         }
-        let Some(argv) = argv else {
+        if argv.is_none() {
             anyhow::bail!("--shard needs the command line (run the binary or `figures`)");
-        };
+        }
+    }
+    if let Some(argv) = argv {
         ctx.set_argv(argv);
     }
     if let Some(j) = merged {

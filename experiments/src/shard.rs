@@ -40,6 +40,19 @@ pub struct Tally {
     pub label: String,
     /// Its parts, each with per-batch sums and seconds.
     pub parts: Vec<PassSums>,
+    /// Free text the producer keeps with it (a grid task's iteration counts).
+    pub note: String,
+}
+
+/// Which task of a sweep a `--task K` run computes, and how many units it has seen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TaskSel {
+    /// K.
+    pub index: u32,
+    /// Tasks of the sweep.
+    pub count: u32,
+    /// Units the run has passed so far.
+    pub seen: u32,
 }
 
 /// How a run's Monte Carlo tallies are obtained.
@@ -56,6 +69,9 @@ pub enum Mc {
         argv: Vec<String>,
         /// Tallies computed so far.
         tallies: Vec<Tally>,
+        /// With `--task K`: the one unit of a sweep this run computes (whole, `shard` is
+        /// `Shard::WHOLE`); the tallies of every other unit are skipped.
+        task: Option<TaskSel>,
     },
     /// Joined from shard files.
     Merge {
@@ -63,6 +79,8 @@ pub enum Mc {
         tallies: VecDeque<Tally>,
         /// The shards' provenance, for `meta.json`.
         provenance: serde_json::Value,
+        /// Whether they are `--task` results (which hold the deterministic units too).
+        from_tasks: bool,
     },
 }
 
@@ -90,6 +108,9 @@ pub struct TallyHeader {
     pub label: String,
     /// Its parts.
     pub parts: Vec<PartHeader>,
+    /// Its note.
+    #[serde(default)]
+    pub note: String,
 }
 
 /// A shard file's provenance and layout.
@@ -113,6 +134,12 @@ pub struct Header {
     pub machine: serde_json::Value,
     /// The tallies, in the producer's order.
     pub tallies: Vec<TallyHeader>,
+    /// With `--task K`: K (the file then holds that task's tallies; `shard`/`shards` are 0/1).
+    #[serde(default)]
+    pub task: Option<u32>,
+    /// With `--task K`: the sweep's number of tasks.
+    #[serde(default)]
+    pub tasks: Option<u32>,
 }
 
 /// `argv` without the flags that do not change results: `--out X`, `--shard X` (and their
@@ -287,6 +314,7 @@ pub fn read(path: &Path) -> Result<ShardFile> {
         tallies.push(Tally {
             label: t.label.clone(),
             parts,
+            note: t.note.clone(),
         });
     }
     Ok(ShardFile {
@@ -297,8 +325,16 @@ pub fn read(path: &Path) -> Result<ShardFile> {
 }
 
 /// The header of a shard's tallies.
-pub fn header(producer: &str, argv: &[String], shard: Shard, tallies: &[Tally]) -> Header {
+pub fn header(
+    producer: &str,
+    argv: &[String],
+    shard: Shard,
+    task: Option<TaskSel>,
+    tallies: &[Tally],
+) -> Header {
     Header {
+        task: task.map(|t| t.index),
+        tasks: task.map(|t| t.count),
         producer: producer.to_string(),
         argv: argv.to_vec(),
         shard: shard.index(),
@@ -311,6 +347,7 @@ pub fn header(producer: &str, argv: &[String], shard: Shard, tallies: &[Tally]) 
             .iter()
             .map(|t| TallyHeader {
                 label: t.label.clone(),
+                note: t.note.clone(),
                 parts: t
                     .parts
                     .iter()
@@ -339,6 +376,8 @@ pub struct Joined {
     pub tallies: VecDeque<Tally>,
     /// Provenance of the shards for `meta.json`.
     pub provenance: serde_json::Value,
+    /// Whether they are `--task` results.
+    pub from_tasks: bool,
 }
 
 /// Checks that `files` are all N shards of one run (same producer, flags, revision, input
@@ -347,6 +386,9 @@ pub fn join(files: Vec<ShardFile>) -> Result<Joined> {
     let Some(first) = files.first() else {
         bail!("no shards given");
     };
+    if first.header.tasks.is_some() {
+        return join_tasks(files);
+    }
     let h0 = first.header.clone();
     let p0 = first.path.clone();
     let mut seen: BTreeMap<u32, PathBuf> = BTreeMap::new();
@@ -373,6 +415,9 @@ pub fn join(files: Vec<ShardFile>) -> Result<Joined> {
         }
         if h.shards != h0.shards {
             return Err(differ("shard counts", &h0.shards, &h.shards));
+        }
+        if h.tasks.is_some() {
+            return Err(differ("kinds (shards vs tasks)", &h0.tasks, &h.tasks));
         }
         let labels =
             |h: &Header| -> Vec<String> { h.tallies.iter().map(|t| t.label.clone()).collect() };
@@ -434,13 +479,102 @@ pub fn join(files: Vec<ShardFile>) -> Result<Joined> {
                 .with_context(|| format!("tally `{label}`, pass {j}"))?;
             parts.push(PassSums { sums, seconds });
         }
-        tallies.push_back(Tally { label, parts });
+        let note = h0.tallies[k].note.clone();
+        tallies.push_back(Tally { label, parts, note });
     }
     Ok(Joined {
         producer: h0.producer,
         argv: h0.argv,
         tallies,
         provenance,
+        from_tasks: false,
+    })
+}
+
+/// Checks that `files` are all T task results of one sweep (same producer, flags, revision,
+/// inputs; each task 0..T once) and puts their tallies in task order.
+fn join_tasks(mut files: Vec<ShardFile>) -> Result<Joined> {
+    let h0 = files[0].header.clone();
+    let p0 = files[0].path.clone();
+    let count = h0.tasks.unwrap_or(0);
+    let mut seen: BTreeMap<u32, PathBuf> = BTreeMap::new();
+    for f in &files {
+        let h = &f.header;
+        let differ = |what: &str, a: &dyn std::fmt::Debug, b: &dyn std::fmt::Debug| {
+            anyhow::anyhow!(
+                "{} and {} are not tasks of one sweep: their {what} differ ({a:?} vs {b:?})",
+                p0.display(),
+                f.path.display()
+            )
+        };
+        if h.producer != h0.producer {
+            return Err(differ("producers", &h0.producer, &h.producer));
+        }
+        if h.argv != h0.argv {
+            return Err(differ("flags", &h0.argv, &h.argv));
+        }
+        if h.git_revision != h0.git_revision {
+            return Err(differ("revisions", &h0.git_revision, &h.git_revision));
+        }
+        if h.inputs != h0.inputs {
+            return Err(differ("input files", &h0.inputs, &h.inputs));
+        }
+        if h.tasks != h0.tasks {
+            return Err(differ("task counts (or kinds)", &h0.tasks, &h.tasks));
+        }
+        let k = h.task.unwrap_or(u32::MAX);
+        if let Some(other) = seen.insert(k, f.path.clone()) {
+            bail!(
+                "task {k} of {count} is given twice: {} and {}",
+                other.display(),
+                f.path.display()
+            );
+        }
+    }
+    let missing: Vec<String> = (0..count)
+        .filter(|i| !seen.contains_key(i))
+        .map(|i| i.to_string())
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "task{} {} of this {count}-task sweep {} missing: rerun {} with the same flags and \
+             `--task`, then merge again",
+            if missing.len() > 1 { "s" } else { "" },
+            missing.join(", "),
+            if missing.len() > 1 { "are" } else { "is" },
+            if missing.len() > 1 { "them" } else { "it" },
+        );
+    }
+    files.sort_by_key(|f| f.header.task);
+    let provenance = serde_json::json!({
+        "tasks": count,
+        "files": files.iter().map(|f| serde_json::json!({
+            "path": f.path.display().to_string(), "task": f.header.task,
+            "command": f.header.command, "machine": f.header.machine,
+        })).collect::<Vec<_>>(),
+        "git_revision": h0.git_revision,
+        "inputs": h0.inputs,
+    });
+    let mut tallies = VecDeque::new();
+    for f in files {
+        for t in f.tallies {
+            if let Some(p) = t.parts.iter().find(|p| !p.sums.is_complete()) {
+                bail!(
+                    "task tally `{}` holds batches {:?} of {}, not its whole run",
+                    t.label,
+                    p.sums.batches(),
+                    p.sums.total_batches
+                );
+            }
+            tallies.push_back(t);
+        }
+    }
+    Ok(Joined {
+        producer: h0.producer,
+        argv: h0.argv,
+        tallies,
+        provenance,
+        from_tasks: true,
     })
 }
 
@@ -475,8 +609,9 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
         argv.push(out.display().to_string());
     }
     eprintln!(
-        "merge: {} shards of `{} {}`",
+        "merge: {} {} of `{} {}`",
         args.shards.len(),
+        if joined.from_tasks { "tasks" } else { "shards" },
         joined.producer,
         joined.argv.join(" ")
     );
@@ -491,4 +626,18 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
             crate::experiment::producers().join(", ")
         ),
     }
+}
+
+/// `argv` without `--task K` / `--task=K` (the task's index goes in the header).
+pub fn strip_task(argv: &[String]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut it = argv.iter();
+    while let Some(a) = it.next() {
+        if a == "--task" {
+            it.next();
+        } else if !a.starts_with("--task=") {
+            out.push(a.clone());
+        }
+    }
+    out
 }

@@ -382,3 +382,80 @@ fn shard_flags_are_checked() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn atlas_tasks_merge_like_a_single_run() {
+    let dir = scratch("tasks");
+    let bin = env!("CARGO_BIN_EXE_accuracy_cost");
+    let scene = workspace().join("scenes/emissive_cloud.toml");
+    let scene = scene.to_string_lossy().into_owned();
+    let base = strings(&[
+        "--quick",
+        "--scenes",
+        &scene,
+        "--methods",
+        "pt,cda",
+        "--reference-spp",
+        "64",
+        "--resolution",
+        "12,12",
+        "--no-progress",
+    ]);
+    let o = Command::new(bin)
+        .args(&base)
+        .arg("--list-tasks")
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let list = String::from_utf8_lossy(&o.stdout).into_owned();
+    let lines: Vec<&str> = list.lines().collect();
+    // One reference, two path-tracer points, two CDA settings.
+    assert_eq!(lines.len(), 5, "{list}");
+    assert!(
+        lines[0].contains("reference") && lines[3].contains("cda"),
+        "{list}"
+    );
+    let mut whole = base.clone();
+    whole.extend(strings(&["--out", "whole"]));
+    ok(bin, &whole, &dir);
+    let mut dirs = Vec::new();
+    for k in 0..lines.len() {
+        let mut a = base.clone();
+        let out = format!("task{k}");
+        a.extend(strings(&["--task", &k.to_string(), "--out", &out]));
+        ok(bin, &a, &dir);
+        dirs.push(out);
+    }
+    let (_, err) = run(
+        env!("CARGO_BIN_EXE_merge"),
+        &strings(&["--out", "partial", "task0", "task1", "task3", "task4"]),
+        &dir,
+    );
+    assert!(
+        err.contains("task 2 of this 5-task sweep is missing"),
+        "{err}"
+    );
+    let mut m = strings(&["--out", "merged"]);
+    m.extend(dirs.iter().rev().cloned());
+    ok(env!("CARGO_BIN_EXE_merge"), &m, &dir);
+    // Every column but the seconds (a grid point's seconds are its task's own, so
+    // fastest.csv and the plots follow from the same numbers as in one run).
+    for name in ["points.csv", "references.csv"] {
+        let a = csv_without(&dir.join("whole").join(name), &["seconds"]);
+        let b = csv_without(&dir.join("merged").join(name), &["seconds"]);
+        assert!(a.len() > 1);
+        assert_eq!(a, b, "{name}");
+    }
+    for f in ["fastest.csv", "pareto_emissive_cloud.png", "meta.json"] {
+        assert!(
+            dir.join("merged").join(f).is_file(),
+            "{f} missing from the merge"
+        );
+    }
+    let mut bad = base.clone();
+    bad.extend(strings(&["--task", "5"]));
+    let (success, err) = run(bin, &bad, &dir);
+    assert!(!success && err.contains("this sweep has 5 tasks"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -75,8 +75,16 @@ fn csv_without(path: &Path, skip: &[&str]) -> Vec<Vec<String>> {
     out
 }
 
-/// Submits `producer flags` as 4 shards with `--wait`, runs it unsharded, compares `files`.
-fn through_slurm(tag: &str, producer: &str, flags: &[&str], files: &[(&str, &[&str])]) {
+/// Submits `producer flags` as 4 shards (or, with `tasks`, one array task per line of its
+/// `--list-tasks`) with `--wait`, runs it unsharded, compares `files`.
+fn through_slurm(
+    tag: &str,
+    split: &[&str],
+    jobs: usize,
+    producer: &str,
+    flags: &[&str],
+    files: &[(&str, &[&str])],
+) {
     let dir = std::env::temp_dir().join(format!("scatterbench-slurm-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
@@ -84,7 +92,8 @@ fn through_slurm(tag: &str, producer: &str, flags: &[&str], files: &[(&str, &[&s
     let bindir = bin.parent().unwrap();
     let t0 = std::time::Instant::now();
     let o = Command::new(workspace().join("slurm/submit"))
-        .args(["--shards", "4", "--cpus", "1", "--mem", "1G", "--wait"])
+        .args(split)
+        .args(["--cpus", "1", "--mem", "1G", "--wait"])
         .arg("--bin-dir")
         .arg(bindir)
         .arg("--work")
@@ -117,8 +126,9 @@ fn through_slurm(tag: &str, producer: &str, flags: &[&str], files: &[(&str, &[&s
         })
         .collect();
     log(&format!(
-        "slurm {tag}: `{producer} {}` as 4 shards + merge in {seconds:.1} s; job ids {}",
+        "slurm {tag}: `{producer} {}` as {} + merge in {seconds:.1} s; job ids {}",
         flags.join(" "),
+        split.join(" "),
         String::from_utf8_lossy(&o.stdout).trim()
     ));
     for l in &job_lines {
@@ -130,8 +140,8 @@ fn through_slurm(tag: &str, producer: &str, flags: &[&str], files: &[(&str, &[&s
     );
     assert_eq!(
         job_lines.len(),
-        5,
-        "expected 4 shard jobs and 1 merge job in the job logs: {job_lines:?}"
+        jobs + 1,
+        "expected {jobs} array jobs and 1 merge job in the job logs: {job_lines:?}"
     );
     let mut whole: Vec<String> = flags.iter().map(|s| s.to_string()).collect();
     whole.extend(["--no-progress".into(), "--out".into(), "whole".into()]);
@@ -160,29 +170,45 @@ fn sharded_runs_through_slurm_merge_bit_identically() {
     }
     through_slurm(
         "reference",
+        &["--shards", "4"],
+        4,
         "pt_slab",
         &["--quick", "--paths", "64000", "--tau", "1,8"],
         &[("slab.csv", &["seconds"])],
     );
     let scene = workspace().join("scenes/emissive_cloud.toml");
     let scene = scene.to_string_lossy().into_owned();
+    let atlas = [
+        "--quick",
+        "--scenes",
+        &scene,
+        "--methods",
+        "pt,cda",
+        "--reference-spp",
+        "64",
+        "--resolution",
+        "12,12",
+    ];
+    let files: &[(&str, &[&str])] = &[
+        ("points.csv", &["seconds"]),
+        ("references.csv", &["seconds"]),
+    ];
+    // The sweep's Monte Carlo as 4 shards (grid methods in the merge job) …
     through_slurm(
-        "sweep",
+        "atlas-shards",
+        &["--shards", "4"],
+        4,
         "accuracy_cost",
-        &[
-            "--quick",
-            "--scenes",
-            &scene,
-            "--methods",
-            "pt,cda",
-            "--reference-spp",
-            "64",
-            "--resolution",
-            "12,12",
-        ],
-        &[
-            ("points.csv", &["seconds"]),
-            ("references.csv", &["seconds"]),
-        ],
+        &atlas,
+        files,
+    );
+    // … and as its 5 tasks (reference, 2 path-tracer points, 2 CDA settings).
+    through_slurm(
+        "atlas-tasks",
+        &["--tasks"],
+        5,
+        "accuracy_cost",
+        &atlas,
+        files,
     );
 }
