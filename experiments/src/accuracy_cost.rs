@@ -237,7 +237,7 @@ impl MethodEntry {
                         let r = run_grid(job, m)?;
                         Ok((encode_images(&r.images, r.seconds), r.detail))
                     },
-                    |parts, note| decode_images(parts, note),
+                    decode_images,
                 )
             }
         }
