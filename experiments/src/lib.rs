@@ -24,6 +24,8 @@ pub mod point_source_analytic;
 pub mod pt_point_source;
 pub mod pt_render;
 pub mod pt_slab;
+pub mod rde_stability;
+pub mod rde_steady;
 pub mod render;
 pub mod renderings;
 pub mod report;
