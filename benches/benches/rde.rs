@@ -209,7 +209,9 @@ fn bench_gpu(c: &mut Criterion, sizes: &[usize], summary: bool, rows: &mut Vec<R
         });
         if summary {
             let bytes = lbm.bytes_per_step();
-            let probe = |ctx: &GpuContext| match bandwidth::copy_gbs(ctx, bytes as u64 / 2, 10, 3) {
+            // The probe's buffers are capped at the adapter's binding limit (lavapipe: 128 MiB).
+            let probe_bytes = (bytes as u64 / 2).min(ctx.limits().max_storage_buffer_binding_size);
+            let probe = |ctx: &GpuContext| match bandwidth::copy_gbs(ctx, probe_bytes, 10, 3) {
                 Ok(b) => b.gbs,
                 Err(e) => fail(&format!("copy probe: {e}")),
             };

@@ -42,6 +42,11 @@
 //! * [`solve`]: backend dispatch; [`RdeSolution`] carries steps, r, the physical time
 //!   ([`RdeTrace::light_path`] = n·c∆t), the bounds and counts of the medium.
 //! * [`method::RdeMethod`]: the steady RDE as a registered method (`rde[:expanded|verbatim]`).
+//! * [`pm`]: Perona–Malik selective diffusion (thesis Eqs 3.1–3.5) and the containment
+//!   phantoms; [`p1`], [`fe`]: the thesis's P1 and FE schemes as negative controls.
+//! * Experiments `rde_stability` (thesis Fig 4.1 with the measured critical r) and
+//!   `rde_steady` (steady state vs CDA, time to tolerance vs CDA-SOR, phantom containment);
+//!   bench `benches/benches/rde.rs` (one FTCS step against the triad probe).
 //!
 //! ## Time step
 //! r_G = 2/max_p(a_p + 2Σ_s β_ps) (Gershgorin, sufficient for the symmetric conservative
