@@ -141,8 +141,10 @@ fn cda(m: &Medium<f64>, tol: f64) -> Result<(Vec<f64>, usize, f64, bool)> {
     Ok((s.phi, s.steps, t0.elapsed().as_secs_f64(), converged))
 }
 
+/// Ka∆ as a function of β on a phantom.
+type KaMap = fn(f64) -> f64;
+
 fn containment(
-    ctx: &Ctx,
     rows: &mut Vec<ContainRow>,
     name: &str,
     ph: &Phantom,
@@ -172,9 +174,9 @@ fn containment(
     }
     // RDE, conservative, Neumann walls, gradient-mapped β.
     let beta = ph.gradient_beta(Conductance::Exponential, 0.1, 1e-3);
-    let variants: [(&str, Box<dyn Fn(f64) -> f64>); 2] = [
-        ("RDE Ka∆ = 1 − β", Box::new(|b: f64| 1.0 - b)),
-        ("RDE α = 0.99", Box::new(|b: f64| 0.01 / (3.0 * b))),
+    let variants: [(&str, KaMap); 2] = [
+        ("RDE Ka∆ = 1 − β", |b| 1.0 - b),
+        ("RDE α = 0.99", |b| 0.01 / (3.0 * b)),
     ];
     for (label, ka) in variants {
         let coef: Coefficients = ph.rde_coefficients(beta.clone(), ka)?;
@@ -205,7 +207,6 @@ fn containment(
             phi0 = Some(s.phi);
         }
     }
-    let _ = ctx;
     Ok(())
 }
 
@@ -307,14 +308,13 @@ fn run_in(ctx: &mut Ctx, _args: &Args) -> Result<()> {
     let mut rows = Vec::new();
     let gap = Phantom::gap_edge(n2, 1)?;
     containment(
-        ctx,
         &mut rows,
         "2D wall with a one-voxel gap",
         &gap,
         &checkpoints,
     )?;
     let tube = Phantom::tube(n3, n3 as f64 / 8.0)?;
-    containment(ctx, &mut rows, "3D tube", &tube, &checkpoints)?;
+    containment(&mut rows, "3D tube", &tube, &checkpoints)?;
     ctx.csv("containment.csv", &rows)?;
     let mut series = Vec::new();
     let methods: Vec<String> = {
