@@ -24,6 +24,7 @@ pub mod point_source_analytic;
 pub mod pt_point_source;
 pub mod pt_render;
 pub mod pt_slab;
+pub mod rde_controls;
 pub mod rde_stability;
 pub mod rde_steady;
 pub mod render;

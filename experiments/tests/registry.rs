@@ -340,3 +340,26 @@ fn rde_quick_claims() {
         assert!(r.num("eq49") < m);
     }
 }
+
+/// RDE controls (thesis Figs 3.5, 3.6): the detector flags P1 (exactly 0 off the source's
+/// sublattice) and passes the RDE; FE Jacobi multiplies a uniform field by 1 − 1/δ₀ exactly.
+#[test]
+fn rde_controls_quick_claims() {
+    let root = &quick().root;
+    let t = Table::read(&root.join("rde_controls/checkerboard.csv")).unwrap();
+    for r in t.rows() {
+        let s = r.get("scheme");
+        if s.starts_with("P1 central") {
+            assert_eq!(r.num("off_sublattice"), 0.0, "{s}");
+            assert!(r.flag("flagged"), "{s}");
+        }
+        if s.starts_with("RDE") {
+            assert!(!r.flag("flagged") && r.num("min_over_max") >= 0.0, "{s}");
+        }
+    }
+    let f = Table::read(&root.join("rde_controls/fe.csv")).unwrap();
+    for r in f.rows().filter(|r| r.get("start") == "uniform") {
+        let (m, e) = (r.num("factor_per_iteration"), r.num("exact_uniform_factor"));
+        assert!((m - e).abs() <= 1e-12, "{m} vs {e}");
+    }
+}
