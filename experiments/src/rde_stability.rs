@@ -188,7 +188,7 @@ fn hetero_media(n: usize, albedo: f64) -> Result<Vec<(String, Coefficients)>> {
         1e-3,
     );
     Ok(vec![
-        ("step β 1 | 0.01".to_string(), with_a(step)?),
+        ("step β 1 : 0.01".to_string(), with_a(step)?),
         ("random β ~ U[0.01, 1]".to_string(), with_a(random)?),
         ("tube, gradient mapping σ = 0.1".to_string(), with_a(tube)?),
     ])

@@ -107,7 +107,7 @@ fn scenes(n: usize) -> Result<Vec<(String, Medium<f64>)>> {
     let mut q = vec![0.0; len];
     q[grid.index(n / 2 - 2, n / 2, n / 2)] = 1.0;
     out.push((
-        "β step 0.1 | 0.9, α = 0.99".into(),
+        "β step 0.1 : 0.9, α = 0.99".into(),
         Medium::new(grid, sigma_t, vec![0.99; len], q)?,
     ));
     Ok(out)
