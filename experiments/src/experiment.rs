@@ -316,6 +316,9 @@ pub static EXPERIMENTS: &[ExperimentEntry] = &[
     ExperimentEntry::of::<crate::pt_render::PtRender>(),
     ExperimentEntry::of::<crate::renderings::Renderings>(),
     ExperimentEntry::of::<crate::accuracy_cost::AccuracyCost>(),
+    ExperimentEntry::of::<crate::rde_stability::RdeStability>(),
+    ExperimentEntry::of::<crate::rde_steady::RdeSteady>(),
+    ExperimentEntry::of::<crate::rde_controls::RdeControls>(),
     ExperimentEntry::of::<crate::mitsuba_compare::MitsubaCompare>(),
 ];
 
