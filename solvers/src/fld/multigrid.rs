@@ -68,6 +68,10 @@ pub struct MgConfig {
     pub post: usize,
     /// Cycles without a 10 % gain on the best residual before [`Stop::Stalled`].
     pub stall_cycles: usize,
+    /// Coarse levels: set the correction on the Dirichlet layer to −1/3 of its inward
+    /// neighbour's after every sweep (linear extrapolation to zero at the fine layer's
+    /// position, half a fine voxel inside the coarse layer). `false` keeps it zero.
+    pub extrapolated_layer: bool,
 }
 
 impl Default for MgConfig {
@@ -77,6 +81,7 @@ impl Default for MgConfig {
             pre: 2,
             post: 2,
             stall_cycles: 8,
+            extrapolated_layer: false,
         }
     }
 }
@@ -87,6 +92,8 @@ struct Level<T> {
     grid: Grid,
     sig: Vec<f64>,
     absorb: Vec<f64>,
+    /// R̂φ of the current visit (coarse levels), the base of the correction.
+    base: Vec<f64>,
 }
 
 /// The FAS multigrid solve of one medium (CPU, `f32` or `f64`).
@@ -195,6 +202,7 @@ impl<T: Real> CpuMultigrid<T> {
             fld,
             sig,
             absorb,
+            base: Vec::new(),
         }
     }
 
@@ -218,9 +226,16 @@ impl<T: Real> CpuMultigrid<T> {
         fresh_d(&lv.grid, phi, &lv.sig, &self.config, self.floor)
     }
 
-    fn sweep(&mut self, l: usize) {
-        self.levels[l].fld.mg_sweep();
+    fn sweep(&mut self, l: usize) -> f64 {
+        let r = self.levels[l].fld.mg_sweep();
         self.work += 0.125f64.powi(l as i32);
+        if l > 0 && self.mg.extrapolated_layer {
+            let lv = &mut self.levels[l];
+            let mut phi = lv.fld.mg_fields()[0].clone();
+            extrapolate_layer(&lv.grid, &lv.base, &mut phi);
+            lv.fld.mg_set(0, &phi);
+        }
+        r
     }
 
     /// Residual f − L(φ) with D recomputed from φ (0 on the Dirichlet layer).
@@ -245,8 +260,7 @@ impl<T: Real> CpuMultigrid<T> {
         if l + 1 == self.levels.len() {
             let mut first = None;
             for _ in 0..200 {
-                let r = self.levels[l].fld.mg_sweep();
-                self.work += 0.125f64.powi(l as i32);
+                let r = self.sweep(l);
                 let r0 = *first.get_or_insert(r);
                 if !(r > 1e-3 * r0) {
                     break;
@@ -267,6 +281,7 @@ impl<T: Real> CpuMultigrid<T> {
         let lc = apply(&cg, &phi_c0, &d_c, &self.levels[l + 1].absorb);
         let rc = restrict_fw(&fg, &cg, &r);
         let fc: Vec<f64> = rc.iter().zip(&lc).map(|(a, b)| a + b).collect();
+        self.levels[l + 1].base = phi_c0.clone();
         {
             let c = &mut self.levels[l + 1].fld;
             c.mg_set(0, &phi_c0);
@@ -526,7 +541,27 @@ fn restrict_fw(g: &Grid, cg: &Grid, r: &[f64]) -> Vec<f64> {
     out
 }
 
-/// φ += trilinear interpolation of the coarse correction (0 on the coarse Dirichlet layer),
+/// Coarse Dirichlet layer: φ = base + e with e = −1/3 of the correction at the nearest
+/// interior voxel (see [`MgConfig::extrapolated_layer`]).
+fn extrapolate_layer(g: &Grid, base: &[f64], phi: &mut [f64]) {
+    let [nx, ny, nz] = g.n;
+    let cl = |x: usize, n: usize| x.clamp(1, n - 2);
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                if g.is_boundary(i, j, k) {
+                    let q = g.index(cl(i, nx), cl(j, ny), cl(k, nz));
+                    let p = g.index(i, j, k);
+                    let v = base[p] - (phi[q] - base[q]) / 3.0;
+                    phi[p] = if v < 0.0 { 0.0 } else { v };
+                }
+            }
+        }
+    }
+}
+
+/// φ += trilinear interpolation of the coarse correction (the coarse Dirichlet layer's
+/// correction included: 0 unless [`MgConfig::extrapolated_layer`]),
 /// projected onto φ ≥ 0 as the smoother's update is.
 fn prolong_add(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64]) {
     for k in 1..g.n[2] - 1 {
@@ -536,9 +571,7 @@ fn prolong_add(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64]) {
                 for (ck, wk) in weights(k) {
                     for (cj, wj) in weights(j) {
                         for (ci, wi) in weights(i) {
-                            if !cg.is_boundary(ci, cj, ck) {
-                                s += wi * wj * wk * e[cg.index(ci, cj, ck)];
-                            }
+                            s += wi * wj * wk * e[cg.index(ci, cj, ck)];
                         }
                     }
                 }
