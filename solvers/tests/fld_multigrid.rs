@@ -1,6 +1,8 @@
 //! FAS multigrid (`solvers::fld::multigrid`) against red-black SOR (FLD Algorithm 1): the
 //! same fixed point, grid-independent cycle counts, typed stall status, method names.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use solvers::fld::multigrid::{CpuMultigrid, Cycle, MgConfig};
 use solvers::fld::{Boundary, CpuFld, FldConfig, FluxLimiter};
 use solvers::{Medium, Stop, scenes};
