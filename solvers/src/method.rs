@@ -117,6 +117,9 @@ pub enum Stop {
     Cap,
     /// The solution or its convergence measure became NaN or infinite (reported, not hidden).
     NonFinite,
+    /// The iteration stopped making progress before the tolerance (multigrid: no cycle
+    /// reduced the best residual by 10 % within the stall window). Never a "converged".
+    Stalled,
 }
 
 impl fmt::Display for Stop {
@@ -126,6 +129,7 @@ impl fmt::Display for Stop {
             Stop::Converged => "converged",
             Stop::Cap => "cap",
             Stop::NonFinite => "non_finite",
+            Stop::Stalled => "stalled",
         })
     }
 }

@@ -53,6 +53,7 @@ fn quick_config() -> PipelineConfig {
         downsample: 2,
         method: solvers::MethodRef::new(Box::new(solvers::fld::FldMethod {
             config: solvers::fld::FldConfig::default(),
+            multigrid: None,
         })),
         tolerance: solvers::Tolerance {
             rel: 1e-5,

@@ -254,6 +254,59 @@ impl<T: Real> CpuFld<T> {
         per_voxel * self.grid.len() * std::mem::size_of::<T>()
     }
 
+    /// Multigrid level (see [`super::multigrid`]): the smoother state of one coarse level,
+    /// with φ, D and the right-hand side set by the cycle, in normalised units (j̄ = 1).
+    pub(super) fn mg_level(medium: &Medium<T>, config: &FldConfig) -> Result<Self, SolverError> {
+        let mut s = Self::new(medium, &Boundary::Zero, config)?;
+        s.trivial = false;
+        s.j_ref = 1.0;
+        Ok(s)
+    }
+
+    /// One red-black smoothing sweep of FLD Algorithm 1 (exactly [`CpuFld::iterate`] without
+    /// the bookkeeping); returns the sweep's R̄/j̄.
+    pub(super) fn mg_sweep(&mut self) -> f64 {
+        if !self.config.limiter.is_constant() {
+            self.update_boundary_d();
+        }
+        let sumsq = self.pass(0) + self.pass(1);
+        ResidualWindow::new(&self.grid, self.config.residual_margin).rms(sumsq)
+    }
+
+    /// φ, D, σ and the absorption (1 − α)σΔl² in natural layout and normalised units.
+    pub(super) fn mg_fields(&self) -> [Vec<f64>; 4] {
+        [&self.phi, &self.d, &self.sig, &self.absorb]
+            .map(|f| self.unpack(f).into_iter().map(|x| x.f()).collect())
+    }
+
+    /// The right-hand side j (normalised, natural layout) of FLD Eq 32.
+    pub(super) fn mg_rhs(&self) -> Vec<f64> {
+        let dl2 = self.grid.dl * self.grid.dl;
+        self.unpack(&self.src)
+            .into_iter()
+            .map(|x| x.f() / dl2)
+            .collect()
+    }
+
+    /// Sets φ (`which` = 0), D (1) or the right-hand side j (2) from natural layout.
+    pub(super) fn mg_set(&mut self, which: usize, v: &[f64]) {
+        let g = self.grid;
+        let dl2 = g.dl * g.dl;
+        let (f, scale) = match which {
+            0 => (&mut self.phi, 1.0),
+            1 => (&mut self.d, 1.0),
+            _ => (&mut self.src, dl2),
+        };
+        for k in 0..g.n[2] {
+            for j in 0..g.n[1] {
+                for i in 0..g.n[0] {
+                    let (c, p) = packed_index(&g, self.h, i, j, k);
+                    f[c][p] = T::c(v[g.index(i, j, k)] * scale);
+                }
+            }
+        }
+    }
+
     /// Runs one red-black iteration and returns the normalised residual R̄/j̄ measured during it.
     pub fn iterate(&mut self) -> f64 {
         if self.trivial {

@@ -8,6 +8,7 @@
 //! [`FldConfig::default`]. Parameters: `omega` (SOR factor ω, FLD Eq 36) and `theta` (the
 //! under-relaxation of the D update, see the module docs of [`crate::fld`]).
 
+use super::multigrid::{CpuMultigrid, MgConfig};
 use super::{Boundary, FldConfig, FluxLimiter};
 use crate::method::{
     Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem, Tolerance,
@@ -20,6 +21,8 @@ pub struct FldMethod {
     /// The solver settings; `tolerance` and `max_iterations` are replaced by the
     /// [`Tolerance`] of each solve.
     pub config: FldConfig,
+    /// `Some`: solve by FAS multigrid ([`super::multigrid`], CPU only) instead of SOR.
+    pub multigrid: Option<MgConfig>,
 }
 
 impl FldMethod {
@@ -31,7 +34,14 @@ impl FldMethod {
                 ..FldConfig::default()
             }
             .with_omega(1.8),
+            multigrid: None,
         }
+    }
+
+    /// The same method solved by FAS multigrid with default cycle settings.
+    pub fn multigrid(mut self) -> Self {
+        self.multigrid = Some(MgConfig::default());
+        self
     }
 
     /// The solver settings of one solve.
@@ -57,9 +67,13 @@ impl FldMethod {
 
 impl Method for FldMethod {
     fn name(&self) -> String {
-        match self.config.limiter {
-            FluxLimiter::Cda => "cda".into(),
+        let base = match self.config.limiter {
+            FluxLimiter::Cda => "cda".to_string(),
             l => format!("fld:{l}"),
+        };
+        match self.multigrid {
+            Some(_) => format!("{base}:mg"),
+            None => base,
         }
     }
 
@@ -83,6 +97,31 @@ impl Method for FldMethod {
     ) -> Result<Fluence, SolverError> {
         tolerance.validate()?;
         let cfg = self.config_for(tolerance);
+        if let Some(mg) = &self.multigrid {
+            let obs = |i, r| observer(i, r);
+            return match backend {
+                Backend::Cpu(Precision::F64) => {
+                    Ok(
+                        CpuMultigrid::new(problem.medium, &Boundary::Zero, &cfg, mg)?
+                            .solve_observed(obs)
+                            .erase(),
+                    )
+                }
+                Backend::Cpu(Precision::F32) => Ok(CpuMultigrid::<f32>::new(
+                    &problem.medium.cast(),
+                    &Boundary::Zero,
+                    &cfg,
+                    mg,
+                )?
+                .solve_observed(obs)
+                .widen_with(|t| t)
+                .erase()),
+                Backend::Gpu(_) => Err(SolverError::Unsupported(format!(
+                    "{}: multigrid runs on the CPU only (GPU multigrid is not implemented)",
+                    self.name()
+                ))),
+            };
+        }
         super::solve(backend, problem.medium, &Boundary::Zero, &cfg, |i, r| {
             observer(i, r)
         })
@@ -119,16 +158,21 @@ pub const CDA: MethodFamily = MethodFamily {
     name: "cda",
     title: "classical diffusion (CDA), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 11–12, 26–27, 30–37, Algorithm 1)",
-    variants: "",
+    variants: "mg",
     params: PARAMS,
     build: |variant, params| match variant {
         None => Ok(Box::new(
             FldMethod::new(FluxLimiter::Cda).with_params(params)?,
         )),
+        Some("mg") => Ok(Box::new(
+            FldMethod::new(FluxLimiter::Cda)
+                .multigrid()
+                .with_params(params)?,
+        )),
         Some(v) => Err(SolverError::UnknownName {
             what: "variant of cda",
             got: v.to_string(),
-            known: "none".into(),
+            known: "mg".into(),
         }),
     },
 };
@@ -139,13 +183,23 @@ pub const FLD: MethodFamily = MethodFamily {
     name: "fld",
     title: "flux-limited diffusion (FLD), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 15–20, Table 2, Algorithm 1)",
-    variants: "lp|sum|max|kershaw|larsen<n>",
+    variants: "lp|sum|max|kershaw|larsen<n>[:mg]",
     params: PARAMS,
     build: |variant, params| {
+        let (variant, mg) = match variant {
+            Some("mg") => (None, true),
+            Some(v) => match v.strip_suffix(":mg") {
+                Some(l) => (Some(l), true),
+                None => (Some(v), false),
+            },
+            None => (None, false),
+        };
         let limiter = match variant {
             None => FluxLimiter::LevermorePomraning,
             Some(v) => v.parse()?,
         };
-        Ok(Box::new(FldMethod::new(limiter).with_params(params)?))
+        let m = FldMethod::new(limiter);
+        let m = if mg { m.multigrid() } else { m };
+        Ok(Box::new(m.with_params(params)?))
     },
 };

@@ -10,6 +10,8 @@
 //! * [`Boundary`]: zero Dirichlet (the paper's) or Dirichlet values from a function.
 //! * [`cpu::CpuFld`]: the rayon kernel, generic over `f32`/`f64`.
 //! * [`gpu::GpuFld`]: the wgpu kernel (f32, `fld.wgsl`), same layout and arithmetic.
+//! * [`multigrid::CpuMultigrid`]: nonlinear FAS multigrid with Algorithm 1's sweep as smoother
+//!   (method names `cda:mg`, `fld:<limiter>:mg`; see [`multigrid`]).
 //!
 //! ## Decisions where the paper is silent (each is tested in `cpu.rs`)
 //! * **Boundary layer.** The outermost voxel layer holds the Dirichlet values and is never
@@ -54,6 +56,7 @@ pub mod cpu;
 pub mod gpu;
 pub mod limiter;
 pub mod method;
+pub mod multigrid;
 pub(crate) mod residual;
 
 pub use cpu::CpuFld;
