@@ -38,6 +38,20 @@
 //!   finite and non-negative. In vacuum D → φ/|∇φ| and the equation turns hyperbolic;
 //!   Gauss-Seidel then settles into a cycle. Media with connected vacuum (the Fig 4 cloud)
 //!   converge.
+//! * **Energy balance (measured, `solvers/tests/energy_balance.rs`).** An emissive albedo-1
+//!   cube inside the vacuum Dirichlet layer (the pipeline's padding): the net discrete flux
+//!   Σ D_pb (φ_p − φ_b) Δl through the faces to the boundary layer equals ∫ j dV to 10⁻⁸ in
+//!   f64 (R̄/j̄ < 10⁻⁸) and to 2.6·10⁻⁵ in f32 (its default 10⁻⁴) for CDA and every limiter at
+//!   σt·Δl ∈ {0.01, 1, 100}. The solver is conservative and not under-converged there.
+//! * **The medium–vacuum face (the paper's method, documented, not changed).** The face
+//!   coefficient to a vacuum voxel is the paper's (D_p + D_s)/2 with D_s from the floors of
+//!   FLD Eqs 33/35: CDA's vacuum D = 1/(3σ_ε) = L/(3·10⁻³) pins the surface voxel to φ ≈ 0
+//!   (4·10⁻⁶ of the Marshak vacuum value at σt·Δl = 100), FLD's vacuum D ≈ φ/|∇φ| → 0 leaves
+//!   D_p/2 on the face and the surface voxel at ≈ 4× the Marshak value at σt·Δl = 100, growing
+//!   like σt·Δl. The outflow is right either way, but the raymarch sees φ within a mean free
+//!   path of the surface, which is why the pipeline's emissive albedo-1 images are far too dark
+//!   (CDA) and too bright, growing with σt (FLD) (issue 12's table). Pinned by
+//!   `the_vacuum_face_coefficient_sets_the_surface_fluence`.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
