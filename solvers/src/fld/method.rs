@@ -10,7 +10,8 @@
 
 use super::{Boundary, FldConfig, FluxLimiter};
 use crate::method::{
-    Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem, Tolerance,
+    AnisotropyScaling, Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem,
+    Tolerance,
 };
 use crate::{Backend, Grid, Precision, SolverError};
 
@@ -20,6 +21,8 @@ pub struct FldMethod {
     /// The solver settings; `tolerance` and `max_iterations` are replaced by the
     /// [`Tolerance`] of each solve.
     pub config: FldConfig,
+    /// How σs is used under an anisotropic phase function (a spec suffix `:similarity`).
+    pub anisotropy: AnisotropyScaling,
 }
 
 impl FldMethod {
@@ -31,7 +34,14 @@ impl FldMethod {
                 ..FldConfig::default()
             }
             .with_omega(1.8),
+            anisotropy: AnisotropyScaling::default(),
         }
+    }
+
+    /// Builder: the anisotropy scaling.
+    pub fn with_anisotropy(mut self, a: AnisotropyScaling) -> Self {
+        self.anisotropy = a;
+        self
     }
 
     /// The solver settings of one solve.
@@ -57,10 +67,18 @@ impl FldMethod {
 
 impl Method for FldMethod {
     fn name(&self) -> String {
-        match self.config.limiter {
-            FluxLimiter::Cda => "cda".into(),
+        let base = match self.config.limiter {
+            FluxLimiter::Cda => "cda".to_string(),
             l => format!("fld:{l}"),
+        };
+        match self.anisotropy {
+            AnisotropyScaling::Paper => base,
+            a => format!("{base}:{a}"),
         }
+    }
+
+    fn anisotropy(&self) -> Option<AnisotropyScaling> {
+        Some(self.anisotropy)
     }
 
     fn capabilities(&self) -> Capabilities {
@@ -83,7 +101,9 @@ impl Method for FldMethod {
     ) -> Result<Fluence, SolverError> {
         tolerance.validate()?;
         let cfg = self.config_for(tolerance);
-        super::solve(backend, problem.medium, &Boundary::Zero, &cfg, |i, r| {
+        let scaled = self.anisotropy.apply(problem.medium, problem.phase);
+        let medium = scaled.as_ref().unwrap_or(problem.medium);
+        super::solve(backend, medium, &Boundary::Zero, &cfg, |i, r| {
             observer(i, r)
         })
         .map(|s| s.erase())
@@ -119,17 +139,22 @@ pub const CDA: MethodFamily = MethodFamily {
     name: "cda",
     title: "classical diffusion (CDA), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 11–12, 26–27, 30–37, Algorithm 1)",
-    variants: "",
+    variants: "paper|similarity",
     params: PARAMS,
-    build: |variant, params| match variant {
-        None => Ok(Box::new(
-            FldMethod::new(FluxLimiter::Cda).with_params(params)?,
-        )),
-        Some(v) => Err(SolverError::UnknownName {
-            what: "variant of cda",
-            got: v.to_string(),
-            known: "none".into(),
-        }),
+    build: |variant, params| {
+        let a = match variant {
+            None => AnisotropyScaling::default(),
+            Some(v) => AnisotropyScaling::parse(v).ok_or_else(|| SolverError::UnknownName {
+                what: "variant of cda",
+                got: v.to_string(),
+                known: "paper, similarity".into(),
+            })?,
+        };
+        Ok(Box::new(
+            FldMethod::new(FluxLimiter::Cda)
+                .with_anisotropy(a)
+                .with_params(params)?,
+        ))
     },
 };
 
@@ -139,13 +164,92 @@ pub const FLD: MethodFamily = MethodFamily {
     name: "fld",
     title: "flux-limited diffusion (FLD), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 15–20, Table 2, Algorithm 1)",
-    variants: "lp|sum|max|kershaw|larsen<n>",
+    variants: "lp|sum|max|kershaw|larsen<n>[:paper|similarity]",
     params: PARAMS,
     build: |variant, params| {
-        let limiter = match variant {
-            None => FluxLimiter::LevermorePomraning,
-            Some(v) => v.parse()?,
+        let (lim, scaling) = match variant.map(|v| v.split_once(':')) {
+            None => (None, None),
+            Some(None) => (variant, None),
+            Some(Some((l, a))) => (Some(l), Some(a)),
         };
-        Ok(Box::new(FldMethod::new(limiter).with_params(params)?))
+        let limiter = match lim {
+            None => FluxLimiter::LevermorePomraning,
+            Some(v) => v.trim().parse()?,
+        };
+        let a = match scaling {
+            None => AnisotropyScaling::default(),
+            Some(v) => AnisotropyScaling::parse(v).ok_or_else(|| SolverError::UnknownName {
+                what: "anisotropy scaling of fld",
+                got: v.to_string(),
+                known: "paper, similarity".into(),
+            })?,
+        };
+        Ok(Box::new(
+            FldMethod::new(limiter)
+                .with_anisotropy(a)
+                .with_params(params)?,
+        ))
     },
 };
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::method::{self, Problem};
+    use crate::scene::Phase;
+    use crate::{Grid, Medium};
+
+    #[test]
+    fn the_scaling_variant_parses_and_round_trips() {
+        for (spec, name) in [
+            ("cda", "cda"),
+            ("cda:paper", "cda"),
+            ("CDA:Similarity", "cda:similarity"),
+            ("fld:lp:similarity", "fld:lp:similarity"),
+            ("fld:kershaw:paper", "fld:kershaw"),
+        ] {
+            let m = method::parse(spec).unwrap();
+            assert_eq!(m.name(), name, "{spec}");
+            assert_eq!(method::parse(&m.name()).unwrap().name(), name);
+        }
+        assert!(method::parse("cda:bogus").is_err());
+        assert!(method::parse("fld:lp:bogus").is_err());
+    }
+
+    /// The similarity variant solves the scaled medium: at albedo 1 and g = 0.9, σt' = σt/10;
+    /// its φ equals the paper variant's φ on a medium with σt/10 (same arithmetic), and
+    /// differs from the paper variant on the original medium.
+    #[test]
+    fn similarity_solves_the_transport_scaled_medium() {
+        let grid = Grid::new([12; 3], 0.1).unwrap();
+        let mut m = Medium::<f64>::homogeneous(grid, 20.0, 1.0).unwrap();
+        m.emission = vec![1.0; grid.len()];
+        let mut scaled = m.clone();
+        scaled.sigma_t.iter_mut().for_each(|s| *s *= 0.1);
+        let hg = Phase::HenyeyGreenstein { g: 0.9 };
+        let tol = Tolerance::rel(1e-8);
+        let be = Backend::Cpu(Precision::F64);
+        let run = |spec: &str, med: &Medium<f64>| {
+            let p = Problem {
+                medium: med,
+                lights: &[],
+                phase: hg,
+            };
+            method::parse(spec)
+                .unwrap()
+                .solve(&be, &p, &tol, &mut |_, _| {})
+                .unwrap()
+        };
+        let sim = run("cda:similarity", &m);
+        let paper_scaled = run("cda", &scaled);
+        let paper = run("cda", &m);
+        let rel = |a: &[f64], b: &[f64]| {
+            let n: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+            (n / b.iter().map(|y| y * y).sum::<f64>()).sqrt()
+        };
+        assert!(rel(&sim.phi, &paper_scaled.phi) < 1e-12);
+        // A tenth of σt: D is 10× larger and φ about 10× smaller than the paper variant's.
+        assert!(rel(&sim.phi, &paper.phi) > 0.1);
+    }
+}
