@@ -264,6 +264,65 @@ impl Capabilities {
     }
 }
 
+/// How a method that scatters isotropically uses σs under an anisotropic phase function
+/// (issue 12, item 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AnisotropyScaling {
+    /// The papers' use: σs as given, scattered isotropically (the phase function is ignored).
+    #[default]
+    Paper,
+    /// The similarity (transport) scaling σs' = (1 − g)σs, σt' = σa + σs' with isotropic
+    /// scattering; the source q is unchanged.
+    Similarity,
+}
+
+impl AnisotropyScaling {
+    /// The variant's name in a method spec: `paper` or `similarity`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            AnisotropyScaling::Paper => "paper",
+            AnisotropyScaling::Similarity => "similarity",
+        }
+    }
+
+    /// Parses `paper` or `similarity` (case-insensitive); `None` for anything else.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "paper" => Some(AnisotropyScaling::Paper),
+            "similarity" => Some(AnisotropyScaling::Similarity),
+            _ => None,
+        }
+    }
+
+    /// The medium the method solves on: `None` (the medium as given) for [`Self::Paper`] or
+    /// g = 0; for [`Self::Similarity`], σt' = σt(1 − αg) and α' = α(1 − g)/(1 − αg), i.e.
+    /// σs' = (1 − g)σs and σa unchanged, with the emission (the source) unchanged.
+    pub fn apply(&self, medium: &Medium<f64>, phase: Phase) -> Option<Medium<f64>> {
+        let g = phase.mean_cosine();
+        if *self == AnisotropyScaling::Paper || g == 0.0 {
+            return None;
+        }
+        let mut m = medium.clone();
+        for (st, a) in m.sigma_t.iter_mut().zip(m.albedo.iter_mut()) {
+            let keep = 1.0 - *a * g;
+            *st *= keep;
+            *a = if keep > 0.0 {
+                (*a * (1.0 - g) / keep).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+        }
+        Some(m)
+    }
+}
+
+impl fmt::Display for AnisotropyScaling {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// A multiple-scattering method with its settings.
 pub trait Method: fmt::Debug + Send + Sync {
     /// Its name: `family[:variant]`, parseable by [`parse`] (e.g. `fld:lp`, `cda`, `lbm`).
@@ -291,6 +350,12 @@ pub trait Method: fmt::Debug + Send + Sync {
     /// (`solvers/tests/kernel_contract.rs`); none by default.
     fn kernels(&self) -> &'static [&'static KernelSpec] {
         &[]
+    }
+
+    /// How it uses σs under an anisotropic phase function, for methods that scatter
+    /// isotropically and offer the choice ([`AnisotropyScaling`]); `None` for the others.
+    fn anisotropy(&self) -> Option<AnisotropyScaling> {
+        None
     }
 }
 

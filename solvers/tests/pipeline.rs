@@ -54,6 +54,7 @@ fn quick_config() -> PipelineConfig {
         method: solvers::MethodRef::new(Box::new(solvers::fld::FldMethod {
             config: solvers::fld::FldConfig::default(),
             multigrid: None,
+            anisotropy: solvers::method::AnisotropyScaling::Paper,
         })),
         tolerance: solvers::Tolerance {
             rel: 1e-5,
@@ -502,4 +503,28 @@ fn every_registered_method_replaces_only_the_multiple_scattering_pass() {
             "{name} / FLD multiple scattering = {ratio}"
         );
     }
+}
+
+/// Issue 12, item 2: the plan names the anisotropy variant that runs, and warns when the
+/// paper's isotropic σs runs under |g| > 0.5 (not at g = 0.4, not for `:similarity`).
+#[test]
+fn the_plan_names_the_anisotropy_variant_and_warns_on_strong_anisotropy() {
+    let with = |spec: &str, g: f64| {
+        let mut s = cloud(0.9, true, false);
+        s.phase = Phase::HenyeyGreenstein { g };
+        let cfg = PipelineConfig {
+            method: spec.parse().unwrap(),
+            ..PipelineConfig::default()
+        };
+        pipeline::plan_channels(&[s], &EffectSelection::default(), &cfg).unwrap()
+    };
+    let p = with("cda", 0.9);
+    assert_eq!(p.warnings.len(), 1, "{}", p.explain());
+    assert!(p.explain().contains("warning") && p.explain().contains("`paper`"));
+    assert!(with("cda", 0.4).warnings.is_empty());
+    let s = with("fld:lp:similarity", 0.9);
+    assert!(s.warnings.is_empty(), "{}", s.explain());
+    assert!(
+        s.explain().contains("fld:lp:similarity") && s.explain().contains("similarity scaling")
+    );
 }

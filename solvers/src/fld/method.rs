@@ -11,7 +11,8 @@
 use super::multigrid::{CpuMultigrid, MgConfig};
 use super::{Boundary, FldConfig, FluxLimiter};
 use crate::method::{
-    Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem, Tolerance,
+    AnisotropyScaling, Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem,
+    Tolerance,
 };
 use crate::{Backend, Grid, Precision, SolverError};
 
@@ -23,6 +24,8 @@ pub struct FldMethod {
     pub config: FldConfig,
     /// `Some`: solve by FAS multigrid ([`super::multigrid`], CPU only) instead of SOR.
     pub multigrid: Option<MgConfig>,
+    /// How σs is used under an anisotropic phase function (a spec suffix `:similarity`).
+    pub anisotropy: AnisotropyScaling,
 }
 
 impl FldMethod {
@@ -35,12 +38,19 @@ impl FldMethod {
             }
             .with_omega(1.8),
             multigrid: None,
+            anisotropy: AnisotropyScaling::default(),
         }
     }
 
     /// The same method solved by FAS multigrid with default cycle settings.
     pub fn multigrid(mut self) -> Self {
         self.multigrid = Some(MgConfig::default());
+        self
+    }
+
+    /// Builder: the anisotropy scaling.
+    pub fn with_anisotropy(mut self, a: AnisotropyScaling) -> Self {
+        self.anisotropy = a;
         self
     }
 
@@ -71,10 +81,18 @@ impl Method for FldMethod {
             FluxLimiter::Cda => "cda".to_string(),
             l => format!("fld:{l}"),
         };
+        let base = match self.anisotropy {
+            AnisotropyScaling::Paper => base,
+            a => format!("{base}:{a}"),
+        };
         match self.multigrid {
             Some(_) => format!("{base}:mg"),
             None => base,
         }
+    }
+
+    fn anisotropy(&self) -> Option<AnisotropyScaling> {
+        Some(self.anisotropy)
     }
 
     fn capabilities(&self) -> Capabilities {
@@ -97,32 +115,31 @@ impl Method for FldMethod {
     ) -> Result<Fluence, SolverError> {
         tolerance.validate()?;
         let cfg = self.config_for(tolerance);
+        let scaled = self.anisotropy.apply(problem.medium, problem.phase);
+        let medium = scaled.as_ref().unwrap_or(problem.medium);
         if let Some(mg) = &self.multigrid {
             let obs = |i, r| observer(i, r);
             return match backend {
                 Backend::Cpu(Precision::F64) => {
+                    Ok(CpuMultigrid::new(medium, &Boundary::Zero, &cfg, mg)?
+                        .solve_observed(obs)
+                        .erase())
+                }
+                Backend::Cpu(Precision::F32) => {
                     Ok(
-                        CpuMultigrid::new(problem.medium, &Boundary::Zero, &cfg, mg)?
+                        CpuMultigrid::<f32>::new(&medium.cast(), &Boundary::Zero, &cfg, mg)?
                             .solve_observed(obs)
+                            .widen_with(|t| t)
                             .erase(),
                     )
                 }
-                Backend::Cpu(Precision::F32) => Ok(CpuMultigrid::<f32>::new(
-                    &problem.medium.cast(),
-                    &Boundary::Zero,
-                    &cfg,
-                    mg,
-                )?
-                .solve_observed(obs)
-                .widen_with(|t| t)
-                .erase()),
                 Backend::Gpu(_) => Err(SolverError::Unsupported(format!(
                     "{}: multigrid runs on the CPU only (GPU multigrid is not implemented)",
                     self.name()
                 ))),
             };
         }
-        super::solve(backend, problem.medium, &Boundary::Zero, &cfg, |i, r| {
+        super::solve(backend, medium, &Boundary::Zero, &cfg, |i, r| {
             observer(i, r)
         })
         .map(|s| s.erase())
@@ -158,22 +175,13 @@ pub const CDA: MethodFamily = MethodFamily {
     name: "cda",
     title: "classical diffusion (CDA), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 11–12, 26–27, 30–37, Algorithm 1)",
-    variants: "mg",
+    variants: "[paper|similarity][:mg]",
     params: PARAMS,
-    build: |variant, params| match variant {
-        None => Ok(Box::new(
-            FldMethod::new(FluxLimiter::Cda).with_params(params)?,
-        )),
-        Some("mg") => Ok(Box::new(
-            FldMethod::new(FluxLimiter::Cda)
-                .multigrid()
-                .with_params(params)?,
-        )),
-        Some(v) => Err(SolverError::UnknownName {
-            what: "variant of cda",
-            got: v.to_string(),
-            known: "mg".into(),
-        }),
+    build: |variant, params| {
+        let (_, a, mg) = options(variant, false)?;
+        let m = FldMethod::new(FluxLimiter::Cda).with_anisotropy(a);
+        let m = if mg { m.multigrid() } else { m };
+        Ok(Box::new(m.with_params(params)?))
     },
 };
 
@@ -183,23 +191,118 @@ pub const FLD: MethodFamily = MethodFamily {
     name: "fld",
     title: "flux-limited diffusion (FLD), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 15–20, Table 2, Algorithm 1)",
-    variants: "lp|sum|max|kershaw|larsen<n>[:mg]",
+    variants: "lp|sum|max|kershaw|larsen<n>[:paper|similarity][:mg]",
     params: PARAMS,
     build: |variant, params| {
-        let (variant, mg) = match variant {
-            Some("mg") => (None, true),
-            Some(v) => match v.strip_suffix(":mg") {
-                Some(l) => (Some(l), true),
-                None => (Some(v), false),
-            },
-            None => (None, false),
-        };
-        let limiter = match variant {
+        let (limiter, a, mg) = options(variant, true)?;
+        let limiter = match limiter {
             None => FluxLimiter::LevermorePomraning,
-            Some(v) => v.parse()?,
+            Some(v) => v.trim().parse()?,
         };
-        let m = FldMethod::new(limiter);
+        let m = FldMethod::new(limiter).with_anisotropy(a);
         let m = if mg { m.multigrid() } else { m };
         Ok(Box::new(m.with_params(params)?))
     },
 };
+
+/// Splits a `cda`/`fld` variant into (limiter, anisotropy scaling, multigrid): tokens
+/// separated by `:`, where `mg` selects multigrid, `paper`/`similarity` the scaling, and (for
+/// `fld`, first) any other token the limiter.
+fn options(
+    variant: Option<&str>,
+    has_limiter: bool,
+) -> Result<(Option<String>, AnisotropyScaling, bool), SolverError> {
+    let mut limiter = None;
+    let mut scaling = AnisotropyScaling::default();
+    let mut mg = false;
+    for (k, tok) in variant.unwrap_or("").split(':').enumerate() {
+        let t = tok.trim();
+        if t.is_empty() && variant.is_none() {
+            continue;
+        }
+        if t.eq_ignore_ascii_case("mg") {
+            mg = true;
+        } else if let Some(a) = AnisotropyScaling::parse(t) {
+            scaling = a;
+        } else if has_limiter && k == 0 {
+            limiter = Some(t.to_string());
+        } else {
+            return Err(SolverError::UnknownName {
+                what: if has_limiter {
+                    "variant of fld (after the limiter: paper, similarity, mg)"
+                } else {
+                    "variant of cda"
+                },
+                got: t.to_string(),
+                known: if has_limiter {
+                    "lp, sum, max, kershaw, larsen<n>, then paper|similarity and/or mg".into()
+                } else {
+                    "paper, similarity, mg".into()
+                },
+            });
+        }
+    }
+    Ok((limiter, scaling, mg))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::method::{self, Problem};
+    use crate::scene::Phase;
+    use crate::{Grid, Medium};
+
+    #[test]
+    fn the_scaling_variant_parses_and_round_trips() {
+        for (spec, name) in [
+            ("cda", "cda"),
+            ("cda:paper", "cda"),
+            ("CDA:Similarity", "cda:similarity"),
+            ("fld:lp:similarity", "fld:lp:similarity"),
+            ("fld:kershaw:paper", "fld:kershaw"),
+        ] {
+            let m = method::parse(spec).unwrap();
+            assert_eq!(m.name(), name, "{spec}");
+            assert_eq!(method::parse(&m.name()).unwrap().name(), name);
+        }
+        assert!(method::parse("cda:bogus").is_err());
+        assert!(method::parse("fld:lp:bogus").is_err());
+    }
+
+    /// The similarity variant solves the scaled medium: at albedo 1 and g = 0.9, σt' = σt/10;
+    /// its φ equals the paper variant's φ on a medium with σt/10 (same arithmetic), and
+    /// differs from the paper variant on the original medium.
+    #[test]
+    fn similarity_solves_the_transport_scaled_medium() {
+        let grid = Grid::new([12; 3], 0.1).unwrap();
+        let mut m = Medium::<f64>::homogeneous(grid, 20.0, 1.0).unwrap();
+        m.emission = vec![1.0; grid.len()];
+        let mut scaled = m.clone();
+        scaled.sigma_t.iter_mut().for_each(|s| *s *= 0.1);
+        let hg = Phase::HenyeyGreenstein { g: 0.9 };
+        let tol = Tolerance::rel(1e-8);
+        let be = Backend::Cpu(Precision::F64);
+        let run = |spec: &str, med: &Medium<f64>| {
+            let p = Problem {
+                medium: med,
+                lights: &[],
+                phase: hg,
+            };
+            method::parse(spec)
+                .unwrap()
+                .solve(&be, &p, &tol, &mut |_, _| {})
+                .unwrap()
+        };
+        let sim = run("cda:similarity", &m);
+        let paper_scaled = run("cda", &scaled);
+        let paper = run("cda", &m);
+        let rel = |a: &[f64], b: &[f64]| {
+            let n: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+            (n / b.iter().map(|y| y * y).sum::<f64>()).sqrt()
+        };
+        assert!(rel(&sim.phi, &paper_scaled.phi) < 1e-12);
+        // A tenth of σt: D is 10× larger and φ about 10× smaller than the paper variant's.
+        assert!(rel(&sim.phi, &paper.phi) > 0.1);
+    }
+}

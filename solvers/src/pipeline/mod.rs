@@ -305,13 +305,25 @@ pub fn plan_channels(
 ) -> Result<Plan, PipelineError> {
     config.validate()?;
     let (implied, effects) = effects_of(channels, selection, config)?;
-    planner::plan(
+    let mut plan = planner::plan(
         &channels[0].lights,
         &implied,
         &effects,
         config.method.get(),
         config.downsample,
-    )
+    )?;
+    let g = plan.effects.apply_phase(channels[0].phase).mean_cosine();
+    if plan.runs("diffusion_solve")
+        && config.method.anisotropy() == Some(crate::method::AnisotropyScaling::Paper)
+        && g.abs() > 0.5
+    {
+        plan.warnings.push(format!(
+            "{} scatters isotropically with σs as given (the paper's variant) under g = {g}; \
+             the variant `:similarity` uses σs' = (1 − g)σs",
+            config.method.name()
+        ));
+    }
+    Ok(plan)
 }
 
 /// Renders 1 or 3 colour channels (scenes that differ only in their medium values) with

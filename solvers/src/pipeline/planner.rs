@@ -104,6 +104,8 @@ pub struct Plan {
     pub passes: Vec<Planned>,
     /// The passes left out.
     pub skipped: Vec<Skipped>,
+    /// Warnings about the plan (e.g. the paper's isotropic σs under |g| > 0.5).
+    pub warnings: Vec<String>,
 }
 
 /// Light kind names for messages.
@@ -215,6 +217,10 @@ pub fn plan(
                 method.name(),
                 if anisotropic {
                     "with the scene's phase function"
+                } else if method.anisotropy() == Some(crate::method::AnisotropyScaling::Similarity) {
+                    "scattering isotropically with the similarity scaling σs' = (1 − g)σs, σt' = σa + σs' (variant `similarity`)"
+                } else if method.anisotropy().is_some() {
+                    "scattering isotropically with σs as given (the paper's variant `paper`)"
                 } else {
                     "scattering isotropically with σs as given"
                 }
@@ -281,6 +287,7 @@ pub fn plan(
         effects: effects.clone(),
         passes,
         skipped,
+        warnings: Vec::new(),
     })
 }
 
@@ -307,6 +314,9 @@ impl Plan {
             for (k, p) in self.passes.iter().enumerate() {
                 let _ = writeln!(s, "  {}. {:<22} {}", k + 1, p.pass.name(), p.why);
             }
+        }
+        for w in &self.warnings {
+            let _ = writeln!(s, "warning: {w}");
         }
         if !self.skipped.is_empty() {
             let _ = writeln!(s, "skipped:");
