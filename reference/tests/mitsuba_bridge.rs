@@ -53,10 +53,12 @@ fn absorbing_columns_match_beer_lambert_pixel_by_pixel() {
     let medium = Medium::new(grid, sigma_t, vec![0.0; grid.len()], vec![0.0; grid.len()]).unwrap();
     let radiance = 2.0;
     let scene = Scene {
+        interpolation: Default::default(),
         medium,
         phase: Phase::Isotropic,
         lights: vec![Light::Environment { radiance }],
         camera: Some(Camera {
+            hide_background: false,
             eye: [0.5, -1.0, 0.5],
             target: [0.5, 0.5, 0.5],
             up: [0.0, 0.0, 1.0],

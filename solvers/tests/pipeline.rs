@@ -35,6 +35,7 @@ fn cloud(albedo: f64, with_light: bool, with_emission: bool) -> Scene {
         medium.emission.iter_mut().for_each(|j| *j = 0.0);
     }
     Scene {
+        interpolation: Default::default(),
         medium,
         phase: Phase::HenyeyGreenstein { g: 0.4 },
         lights: if with_light {
@@ -144,6 +145,7 @@ fn single_scattering_error(n: usize, step: f64, phase: Phase, shadows: Shadows) 
     let v: [f64; 3] = [0.0, 0.3, -1.0];
     let vlen = (0.09f64 + 1.0).sqrt();
     let scene = Scene {
+        interpolation: Default::default(),
         medium,
         phase,
         lights: vec![Light::directional(v, e).unwrap()],
@@ -233,6 +235,7 @@ fn emission_raymarch_is_exact_for_piecewise_constant_fields() {
     let mut medium = Medium::homogeneous(grid, 2.5, 0.0).unwrap();
     medium.emission = vec![3.0; grid.len()];
     let scene = Scene {
+        interpolation: Default::default(),
         medium,
         phase: Phase::Isotropic,
         lights: vec![],

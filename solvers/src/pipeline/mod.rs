@@ -22,7 +22,8 @@
 //! **Components and scattering orders** (what the path tracer must render to compare, see
 //! [`crate::scene::effects`]): `single` = order 1 from lights; `multiple` = orders ≥ 2 from
 //! lights plus orders ≥ 1 from emission (φ is sourced by q_ri + j, FLD Eq 12); `emission` =
-//! order-0 emission. `total` is their sum. Images are radiance in physical units
+//! order-0 emission; `background` = order 0 from the lights (the environment seen through
+//! the medium, L_env·T, unless `[camera] hide_background`). `total` is their sum. Images are radiance in physical units
 //! (power per area per steradian), row-major, top-left first.
 //!
 //! **Anisotropy.** Single scattering sees the phase function. The multiple-scattering pass
@@ -166,7 +167,7 @@ impl PipelineConfig {
 /// The images of one colour channel: radiance per pixel, row-major.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ChannelImages {
-    /// single + multiple + emission.
+    /// single + multiple + emission + background.
     pub total: Vec<f64>,
     /// Order 1 from lights.
     pub single: Vec<f64>,
@@ -174,6 +175,8 @@ pub struct ChannelImages {
     pub multiple: Vec<f64>,
     /// Order-0 emission.
     pub emission: Vec<f64>,
+    /// Order-0 light from the lights: the environment seen through the medium.
+    pub background: Vec<f64>,
 }
 
 /// A pass that ran.
@@ -340,6 +343,7 @@ pub fn render_channels(
             single: vec![0.0; npix],
             multiple: vec![0.0; npix],
             emission: vec![0.0; npix],
+            background: vec![0.0; npix],
         };
         for planned in &plan.passes {
             let t0 = Instant::now();
@@ -364,7 +368,13 @@ pub fn render_channels(
                             .zip(&medium.emission)
                             .for_each(|(q, j)| *q += j);
                     }
-                    let coarse = restrict::restrict(medium, &q, *downsample, config.pad)?;
+                    let coarse = restrict::restrict_with(
+                        medium,
+                        &q,
+                        *downsample,
+                        config.pad,
+                        scene.interpolation,
+                    )?;
                     let problem = Problem {
                         medium: &coarse,
                         lights: &scene.lights,
@@ -421,6 +431,17 @@ pub fn render_channels(
                         );
                     }
                 }
+                Pass::RaymarchBackground { radiance } => {
+                    img.background = raymarch::render_term(
+                        medium,
+                        &camera,
+                        Term::Background {
+                            radiance: *radiance,
+                        },
+                        config.step,
+                        config.pixel_samples,
+                    );
+                }
                 Pass::RaymarchEmission => {
                     img.emission = raymarch::render_term(
                         medium,
@@ -448,6 +469,9 @@ pub fn render_channels(
             }
             if runs("raymarch_emission") {
                 t += img.emission[p];
+            }
+            if runs("raymarch_background") {
+                t += img.background[p];
             }
             img.total[p] = t;
         }
