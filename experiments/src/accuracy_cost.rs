@@ -296,6 +296,7 @@ fn to_channel_images(c: &PtComponents) -> ChannelImages {
         single: c.single.mean.clone(),
         multiple: c.multiple.mean.clone(),
         emission: c.emission.mean.clone(),
+        background: c.background.mean.clone(),
     }
 }
 

@@ -429,6 +429,7 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
                         Component::Single => "single",
                         Component::Multiple => "multiple",
                         Component::Emission => "emission",
+                        Component::Background => "background",
                     }
                 );
                 renders.push(serde_json::json!({

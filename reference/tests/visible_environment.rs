@@ -188,7 +188,15 @@ fn trilinear_and_nearest_transmittance_through_a_step() {
     }
     let exact = |interp| {
         let mean = (0..px)
-            .map(|i| exact_column(interp, a, b, i as f64 / px as f64, (i + 1) as f64 / px as f64))
+            .map(|i| {
+                exact_column(
+                    interp,
+                    a,
+                    b,
+                    i as f64 / px as f64,
+                    (i + 1) as f64 / px as f64,
+                )
+            })
             .collect();
         ImageEstimate::exact(px, 1, mean)
     };

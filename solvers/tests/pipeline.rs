@@ -17,6 +17,7 @@ const CPU: Backend<'static> = Backend::Cpu(Precision::F64);
 
 fn front_camera(res: usize, width: f64) -> Camera {
     Camera {
+        hide_background: false,
         eye: [0.5, -2.0, 0.5],
         target: [0.5, 0.5, 0.5],
         up: [0.0, 0.0, 1.0],
