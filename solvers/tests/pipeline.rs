@@ -326,12 +326,21 @@ fn unsupported_lights_and_bad_settings_are_typed_errors() {
         ),
         "{e}"
     );
-    // Excluding everything the environment light feeds makes the scene renderable.
+    // Excluding everything the environment light feeds makes the scene renderable; the
+    // environment itself stays visible (background, order 0: L_env·T) unless hidden.
     let cfg = PipelineConfig {
         effects: EffectSelection::exclude(&["single_scattering[1]", "multiple_scattering"])
             .unwrap(),
         ..quick_config()
     };
+    let r = pipeline::render(&s, &cfg, &CPU).unwrap();
+    assert_eq!(
+        r.plan.pass_names(),
+        vec!["bake_directional[0]", "raymarch_single", "raymarch_background"]
+    );
+    if let Some(c) = s.camera.as_mut() {
+        c.hide_background = true;
+    }
     let r = pipeline::render(&s, &cfg, &CPU).unwrap();
     assert_eq!(
         r.plan.pass_names(),
