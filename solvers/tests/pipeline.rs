@@ -336,7 +336,11 @@ fn unsupported_lights_and_bad_settings_are_typed_errors() {
     let r = pipeline::render(&s, &cfg, &CPU).unwrap();
     assert_eq!(
         r.plan.pass_names(),
-        vec!["bake_directional[0]", "raymarch_single", "raymarch_background"]
+        vec![
+            "bake_directional[0]",
+            "raymarch_single",
+            "raymarch_background"
+        ]
     );
     if let Some(c) = s.camera.as_mut() {
         c.hide_background = true;
