@@ -240,7 +240,7 @@ fn trilinear_heterogeneous_medium_matches_mitsubas_trilinear_filter() {
     let n = grid.len();
     let sigma: Vec<f64> = (0..n).map(|_| 12.0 * rng.next_f64()).collect();
     let albedo: Vec<f64> = (0..n).map(|_| 0.5 + 0.5 * rng.next_f64()).collect();
-    let mut scene = Scene {
+    let scene = Scene {
         interpolation: solvers::scene::Interpolation::Trilinear,
         medium: Medium::new(grid, sigma, albedo, vec![0.0; n]).unwrap(),
         phase: Phase::HenyeyGreenstein { g: 0.3 },
