@@ -9,7 +9,10 @@
 //!    the conservative restriction) and padded by [`PipelineConfig::pad`] vacuum voxels.
 //! 3. **Primary raymarch** ([`raymarch`], FLD Eq 3 with the source of FLD Eq 8): single
 //!    scattering with the scene's phase function, σs φ/4π with φ upsampled trilinearly,
-//!    and j/4π, as three separate images. CPU (rayon).
+//!    j/4π, and the environment seen through the medium (L_env·T, order 0, unless
+//!    `[camera] hide_background`), as separate images. CPU (rayon). With
+//!    `[medium] interpolation = "trilinear"` only the restriction follows the interpolant
+//!    ([`restrict::restrict_with`]); baking and the raymarch use the per-voxel values.
 //!
 //! [`planner`] turns the effect set (implied by the scene, restricted by its `[effects]`
 //! table and by [`PipelineConfig::effects`]) into the minimal list of passes; every render

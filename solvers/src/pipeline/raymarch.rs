@@ -1,7 +1,7 @@
 //! The primary raymarch (FLD Eq 3) with the source of FLD Eq 8, on CPU (rayon over pixels).
 //!
 //! Along each camera ray, L = ∫ T(s) Q(s) ds with 4πQ = q_ri + σs φ + j (FLD Eq 8), split
-//! into three independently integrated components (see `crate::scene::effects` for their
+//! into four independently integrated components (see `crate::scene::effects` for their
 //! meaning in scattering orders):
 //! * single scattering: σs(x) Σ_l p(cos θ_l) E_l(x) exp(−τ_l(x)) (τ_l from the deep
 //!   shadow map, see [`super::bake`]), with the scene's phase
