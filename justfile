@@ -37,6 +37,18 @@ bench-lbm:
 bench:
     cargo bench -p benches
 
+# A path-traced reference as a Slurm job array of SHARDS shards plus a merge job (see slurm/ and
+# README "Running on a cluster"); e.g. just cluster-reference scenes/nebula.toml 4096 64
+cluster-reference scene spp="4096" shards="16":
+    cargo build --release -p experiments
+    slurm/submit --shards {{shards}} --work results-cluster/render-work --out results-cluster/render -- render --scene {{scene}} --method pt --spp {{spp}}
+
+# The accuracy atlas on Slurm: its Monte Carlo (references, path-tracer points) as SHARDS
+# shards, then a merge job that runs the grid methods and writes results-cluster/accuracy_cost
+cluster-atlas shards="16":
+    cargo build --release -p experiments
+    slurm/submit --shards {{shards}} --work results-cluster/accuracy_cost-work --out results-cluster/accuracy_cost -- accuracy_cost
+
 # Formatting and lints as CI checks them
 lint:
     cargo fmt --all -- --check

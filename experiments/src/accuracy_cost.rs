@@ -32,7 +32,8 @@ use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 pub use crate::scenes::{Prepared, errors, load, parse_resolution, render_reference, scene_paths};
 use anyhow::{Context, Result, bail};
-use reference::effects::{PtComponents, render_components};
+use reference::effects::{PassSums, PtComponents, components_from_parts, render_components_part};
+use reference::pathtracer::BatchSums;
 use reference::pathtracer::{Contributions, RenderSettings};
 use serde::Serialize;
 use solvers::method::{MethodRef, Tolerance};
@@ -115,6 +116,15 @@ pub struct Args {
     /// Seed of the reference (the path tracer's points use seed + 1000).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Print the sweep's tasks, one line each (`K<TAB>scene<TAB>method<TAB>setting<TAB>backend`;
+    /// each scene's reference is a task), and exit.
+    #[arg(long)]
+    pub list_tasks: bool,
+    /// Run only task K of `--list-tasks` (default `--out`: `<default>.task-K`); its result
+    /// goes to `shard.bin`, and `merge` assembles every task's into `points.csv`,
+    /// `fastest.csv`, the plots and the README section as a single run writes them.
+    #[arg(long)]
+    pub task: Option<u32>,
 }
 
 /// One point of the atlas.
@@ -210,11 +220,26 @@ impl MethodEntry {
         }
     }
 
-    /// Renders one setting.
-    pub fn run(&self, job: &Job<'_>) -> Result<Run> {
+    /// Renders one setting. The path tracer's renders are [`Ctx::tally`]s: with `--shard`
+    /// they compute the shard's batches only and nothing comes back, and grid methods are
+    /// left to the merge (`None` too).
+    pub fn run(&self, job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
         match &self.renderer {
-            Renderer::PathTracer => run_pt(job),
-            Renderer::Pipeline(m) => run_grid(job, m),
+            Renderer::PathTracer => run_pt(job, ctx),
+            Renderer::Pipeline(m) => {
+                let label = format!(
+                    "{} {m} [{}] {}",
+                    job.scene.name, job.setting.label, job.backend
+                );
+                ctx.deterministic(
+                    &label,
+                    || {
+                        let r = run_grid(job, m)?;
+                        Ok((encode_images(&r.images, r.seconds), r.detail))
+                    },
+                    decode_images,
+                )
+            }
         }
     }
 }
@@ -269,24 +294,91 @@ fn grid_settings(quick: bool, _spp: &[u32]) -> Vec<Setting> {
         .collect()
 }
 
-fn run_pt(job: &Job<'_>) -> Result<Run> {
+fn run_pt(job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
     let settings = RenderSettings {
         spp: job.setting.spp,
         seed: job.seed,
         batches: reference::pathtracer::MIN_BATCHES,
         contributions: Contributions::all(),
     };
-    let t0 = Instant::now();
     let mut images = Vec::new();
-    for ch in &job.scene.channels {
-        let c = render_components(ch, &job.scene.effects, &settings)
-            .context("path tracing a point of the atlas")?;
-        images.push(to_channel_images(&c));
+    let mut seconds = 0.0;
+    for (c, ch) in job.scene.channels.iter().enumerate() {
+        let what = format!(
+            "path tracer point of {} [{}], channel {c}",
+            job.scene.name, job.setting.label
+        );
+        let tallied = ctx.tally(
+            &what,
+            |shard| {
+                render_components_part(ch, &job.scene.effects, &settings, shard)
+                    .with_context(|| what.clone())
+            },
+            |parts| {
+                let s: f64 = parts.iter().map(|p| p.seconds).sum();
+                Ok((components_from_parts(ch, &job.scene.effects, parts)?, s))
+            },
+        )?;
+        if let Some((comp, s)) = tallied {
+            images.push(to_channel_images(&comp));
+            seconds += s;
+        }
+    }
+    if ctx.sharding() {
+        return Ok(None);
+    }
+    Ok(Some(Run {
+        images,
+        seconds,
+        detail: format!("spp={}", settings.spp),
+    }))
+}
+
+/// A grid run's images as exact f64 arrays for a `--task` result: per channel, total,
+/// single, multiple and emission; the run's seconds with the first.
+fn encode_images(images: &[ChannelImages], seconds: f64) -> Vec<PassSums> {
+    let one = |v: &Vec<f64>, seconds: f64| PassSums {
+        sums: BatchSums {
+            bins: v.len(),
+            total_batches: 1,
+            total_samples: 1,
+            first: 0,
+            sizes: vec![1],
+            sums: v.clone(),
+        },
+        seconds,
+    };
+    let mut out = Vec::with_capacity(4 * images.len());
+    for (c, im) in images.iter().enumerate() {
+        let s = if c == 0 { seconds } else { 0.0 };
+        out.push(one(&im.total, s));
+        out.push(one(&im.single, 0.0));
+        out.push(one(&im.multiple, 0.0));
+        out.push(one(&im.emission, 0.0));
+    }
+    out
+}
+
+/// The inverse of [`encode_images`].
+fn decode_images(parts: &[PassSums], detail: &str) -> Result<Run> {
+    if parts.len() % 4 != 0 {
+        bail!(
+            "a grid task result holds {} arrays, not 4 per channel",
+            parts.len()
+        );
     }
     Ok(Run {
-        images,
-        seconds: t0.elapsed().as_secs_f64(),
-        detail: format!("spp={}", settings.spp),
+        images: parts
+            .chunks(4)
+            .map(|p| ChannelImages {
+                total: p[0].sums.sums.clone(),
+                single: p[1].sums.sums.clone(),
+                multiple: p[2].sums.sums.clone(),
+                emission: p[3].sums.sums.clone(),
+            })
+            .collect(),
+        seconds: parts.first().map_or(0.0, |p| p.seconds),
+        detail: detail.to_string(),
     })
 }
 
@@ -531,6 +623,33 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             }
         }
     }
+    let mut jobs = Vec::new();
+    for m in &methods {
+        for s in m.settings(quick, &spp) {
+            for b in backends.list(s.precision) {
+                if !m.renderer.supports(&b, s.precision) {
+                    continue;
+                }
+                jobs.push((m, s.clone(), b));
+            }
+        }
+    }
+    let tasks = prepared.len() * (1 + jobs.len());
+    if args.list_tasks {
+        let mut k = 0;
+        for scene in &prepared {
+            println!("{k}\t{}\treference\tspp={ref_spp}\tcpu-f64", scene.name);
+            k += 1;
+            for (m, s, b) in &jobs {
+                println!("{k}\t{}\t{}\t{}\t{b}", scene.name, m.name, s.label);
+                k += 1;
+            }
+        }
+        return Err(crate::common::PrintOnly("--list-tasks").into());
+    }
+    if let Some(k) = args.task {
+        ctx.set_task(k, u32::try_from(tasks).unwrap_or(u32::MAX))?;
+    }
     ctx.work(&work)?;
     ctx.start(params)?;
     let out = ctx;
@@ -539,7 +658,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     let mut points = Vec::new();
     let mut refs = Vec::new();
     for scene in &mut prepared {
-        render_reference(scene, ref_spp, args.seed)?;
+        out.unit();
+        if !render_reference(out, scene, ref_spp, args.seed)? && !out.sharding() {
+            bail!("the reference of {} is incomplete", scene.name);
+        }
         out.timing(format!("{}/reference", scene.name), scene.reference_seconds);
         let noise = scene.noise();
         refs.push(ReferenceRow {
@@ -550,26 +672,22 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             channels: scene.channels.len(),
             effects: scene.effects.names(),
         });
-        let mut jobs = Vec::new();
-        for m in &methods {
-            for s in m.settings(quick, &spp) {
-                for b in backends.list(s.precision) {
-                    if !m.renderer.supports(&b, s.precision) {
-                        continue;
-                    }
-                    jobs.push((m, s.clone(), b));
-                }
-            }
-        }
         let bar = progress(jobs.len() as u64, &args.common, &scene.name);
         for (m, s, b) in &jobs {
+            if !out.unit() {
+                bar.inc(1);
+                continue;
+            }
             let job = Job {
                 scene,
                 setting: s,
                 backend: b,
                 seed: args.seed + 1000,
             };
-            let r = m.run(&job)?;
+            let Some(r) = m.run(&job, out)? else {
+                bar.inc(1);
+                continue;
+            };
             let (error, debiased, single, multiple) = errors(scene, &r.images);
             points.push(Point {
                 scene: scene.name.clone(),
@@ -601,7 +719,12 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             bar.inc(1);
         }
         bar.finish_and_clear();
-        plot_scene(out, &scene.name, &points)?;
+        if !out.sharding() {
+            plot_scene(out, &scene.name, &points)?;
+        }
+    }
+    if out.sharding() {
+        return Ok(points);
     }
     out.csv("points.csv", &points)?;
     out.csv("references.csv", &refs)?;
@@ -678,6 +801,7 @@ impl Experiment for AccuracyCost {
     const NAME: &'static str = "accuracy_cost";
     const TITLE: &'static str = "Accuracy vs time atlas";
     const BACKEND: BackendSupport = BackendSupport::Flag;
+    const SHARDS: bool = true;
     type Args = Args;
     type Summary = Vec<Point>;
 

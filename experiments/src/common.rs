@@ -26,6 +26,35 @@ pub struct CommonArgs {
     /// operations).
     #[arg(long)]
     pub force: bool,
+    /// Compute only shard `i` of `N` (0-based) of the run's Monte Carlo batches and write
+    /// them as `shard.bin` (default `--out`: `<default>.shard-i-of-N`); `merge` joins the N
+    /// shards into the files an unsharded run writes. Only Monte Carlo producers take it.
+    #[arg(long, value_parser = parse_shard)]
+    pub shard: Option<reference::pathtracer::Shard>,
+    /// Print the run's cost estimate (one JSON line: operations, and seconds on one core at
+    /// the nominal rate; for `--shard`, one shard's part) and exit without running it.
+    /// `slurm/submit` sizes its time requests from it.
+    #[arg(long)]
+    pub estimate: bool,
+}
+
+/// Returned when a run only prints what was asked (`--estimate` from [`Ctx::work`],
+/// `--list-tasks`) and is not made: the binaries exit 0 on it.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}: printed, the run is not made")]
+pub struct PrintOnly(pub &'static str);
+
+/// A binary's result with [`PrintOnly`] turned into success.
+pub fn estimate_ok(r: Result<()>) -> Result<()> {
+    match r {
+        Err(e) if e.downcast_ref::<PrintOnly>().is_some() => Ok(()),
+        other => other,
+    }
+}
+
+fn parse_shard(s: &str) -> std::result::Result<reference::pathtracer::Shard, String> {
+    s.parse()
+        .map_err(|e: reference::ReferenceError| e.to_string())
 }
 
 /// Where the grid solvers run.
@@ -203,10 +232,14 @@ pub struct Ctx {
     quick: bool,
     no_progress: bool,
     force: bool,
+    estimate: bool,
+    out_given: bool,
+    argv: Option<Vec<String>>,
     started: Instant,
     timings: Vec<(String, f64)>,
     params: serde_json::Value,
     extra: serde_json::Map<String, serde_json::Value>,
+    mc: crate::shard::Mc,
 }
 
 /// The former name of [`Ctx`].
@@ -331,10 +364,30 @@ fn recover(target: &Path) -> Result<()> {
 impl Ctx {
     /// The context of experiment `name`: `args.out`, or [`default_out`] (not created yet).
     pub fn for_run(name: &str, args: &CommonArgs) -> Self {
-        let target = args
-            .out
-            .clone()
-            .unwrap_or_else(|| default_out(name, args.quick));
+        let target = args.out.clone().unwrap_or_else(|| {
+            let d = default_out(name, args.quick);
+            match args.shard {
+                Some(s) => {
+                    let file = d.file_name().map(|n| n.to_string_lossy().into_owned());
+                    d.with_file_name(format!(
+                        "{}.shard-{}-of-{}",
+                        file.unwrap_or_else(|| name.to_string()),
+                        s.index(),
+                        s.count()
+                    ))
+                }
+                None => d,
+            }
+        });
+        let mc = match args.shard {
+            Some(shard) => crate::shard::Mc::Shard {
+                shard,
+                argv: Vec::new(),
+                tallies: Vec::new(),
+                task: None,
+            },
+            None => crate::shard::Mc::Whole,
+        };
         Self {
             dir: target.clone(),
             target,
@@ -344,10 +397,202 @@ impl Ctx {
             quick: args.quick,
             no_progress: args.no_progress,
             force: args.force,
+            estimate: args.estimate,
+            out_given: args.out.is_some(),
+            argv: None,
             started: Instant::now(),
             timings: Vec::new(),
             params: serde_json::Value::Null,
             extra: serde_json::Map::new(),
+            mc,
+        }
+    }
+
+    /// The run's command-line flags, for a shard's or task's header (`--out`, `--shard`,
+    /// `--task` and cosmetic flags are dropped there).
+    pub fn set_argv(&mut self, argv: &[String]) {
+        self.argv = Some(argv.to_vec());
+        if let crate::shard::Mc::Shard { argv: a, .. } = &mut self.mc {
+            *a = crate::shard::strip_flags(argv);
+        }
+    }
+
+    /// Serves this run's tallies from merged shards instead of computing them.
+    pub fn merge_from(&mut self, joined: crate::shard::Joined) {
+        self.mc = crate::shard::Mc::Merge {
+            tallies: joined.tallies,
+            provenance: joined.provenance,
+            from_tasks: joined.from_tasks,
+        };
+    }
+
+    /// Makes this a `--task K` run of a sweep of `count` tasks (before [`Ctx::start`]): only
+    /// unit K ([`Ctx::unit`]) is computed, whole, and written as `shard.bin` for `merge`.
+    /// Without `--out`, the output goes to `<default>.task-K`.
+    pub fn set_task(&mut self, index: u32, count: u32) -> Result<()> {
+        if index >= count {
+            anyhow::bail!(
+                "--task {index}: this sweep has {count} tasks (0 … {}; see --list-tasks)",
+                count.saturating_sub(1)
+            );
+        }
+        if !matches!(self.mc, crate::shard::Mc::Whole) {
+            anyhow::bail!("--task cannot be combined with --shard");
+        }
+        let Some(argv) = self.argv.clone() else {
+            anyhow::bail!("--task needs the command line (run the binary)");
+        };
+        if !self.out_given {
+            let file = self
+                .target
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| self.name.clone());
+            self.target = self.target.with_file_name(format!("{file}.task-{index}"));
+            self.dir = self.target.clone();
+        }
+        self.mc = crate::shard::Mc::Shard {
+            shard: reference::pathtracer::Shard::WHOLE,
+            argv: crate::shard::strip_task(&crate::shard::strip_flags(&argv)),
+            tallies: Vec::new(),
+            task: Some(crate::shard::TaskSel {
+                index,
+                count,
+                seen: 0,
+            }),
+        };
+        Ok(())
+    }
+
+    /// Starts the next unit of a sweep (one line of `--list-tasks`); returns whether this
+    /// run computes it (always, except in a `--task K` run: only unit K).
+    pub fn unit(&mut self) -> bool {
+        match &mut self.mc {
+            crate::shard::Mc::Shard { task: Some(t), .. } => {
+                let mine = t.seen == t.index;
+                t.seen += 1;
+                mine
+            }
+            _ => true,
+        }
+    }
+
+    /// Whether this run computes one shard (`--shard`) or one task (`--task`): it then
+    /// writes no results, only its tallies, so a producer skips its output once every
+    /// tally is taken.
+    pub fn sharding(&self) -> bool {
+        matches!(self.mc, crate::shard::Mc::Shard { .. })
+    }
+
+    /// The run's next Monte Carlo estimate, `label`led: `compute(shard)` returns the
+    /// per-batch sums of its parts for a shard's batches (the whole run: `Shard::WHOLE`),
+    /// `finish` turns joined sums into the estimate. A normal run computes and finishes;
+    /// with `--shard` the sums are kept for the shard file and `None` comes back; in a
+    /// merge the joined sums of the shards are finished (and `compute` never runs).
+    pub fn tally<T>(
+        &mut self,
+        label: &str,
+        compute: impl FnOnce(reference::pathtracer::Shard) -> Result<Vec<reference::effects::PassSums>>,
+        finish: impl FnOnce(&[reference::effects::PassSums]) -> Result<T>,
+    ) -> Result<Option<T>> {
+        use crate::shard::Mc;
+        match &mut self.mc {
+            Mc::Whole => {
+                let parts = compute(reference::pathtracer::Shard::WHOLE)?;
+                finish(&parts).map(Some)
+            }
+            Mc::Shard {
+                shard,
+                tallies,
+                task,
+                ..
+            } => {
+                // In a `--task K` run, only unit K's tallies are computed.
+                if task.is_some_and(|t| t.seen != t.index + 1) {
+                    return Ok(None);
+                }
+                let parts = compute(*shard)?;
+                tallies.push(crate::shard::Tally {
+                    label: label.to_string(),
+                    parts,
+                    note: String::new(),
+                });
+                Ok(None)
+            }
+            Mc::Merge { tallies, .. } => {
+                let Some(t) = tallies.pop_front() else {
+                    anyhow::bail!(
+                        "the shards hold fewer tallies than this run takes (next: `{label}`)"
+                    );
+                };
+                if t.label != label {
+                    anyhow::bail!(
+                        "the shards' next tally is `{}`, this run's is `{label}`: not shards \
+                         of this run",
+                        t.label
+                    );
+                }
+                finish(&t.parts).map(Some)
+            }
+        }
+    }
+
+    /// A deterministic unit of a sweep (a grid render of the atlas), `label`led:
+    /// `compute` returns its result as exact f64 arrays and a note, `finish` rebuilds it.
+    /// A normal run computes and finishes; a `--task K` run computes and keeps it when it
+    /// is unit K (else skips it); a `--shard` run skips it (the merge computes it); a merge
+    /// of tasks finishes the stored result, a merge of shards computes it.
+    pub fn deterministic<T>(
+        &mut self,
+        label: &str,
+        compute: impl FnOnce() -> Result<(Vec<reference::effects::PassSums>, String)>,
+        finish: impl FnOnce(&[reference::effects::PassSums], &str) -> Result<T>,
+    ) -> Result<Option<T>> {
+        use crate::shard::Mc;
+        match &mut self.mc {
+            Mc::Whole
+            | Mc::Merge {
+                from_tasks: false, ..
+            } => {
+                let (parts, note) = compute()?;
+                finish(&parts, &note).map(Some)
+            }
+            Mc::Shard { task: None, .. } => Ok(None),
+            Mc::Shard {
+                task: Some(t),
+                tallies,
+                ..
+            } => {
+                if t.seen != t.index + 1 {
+                    return Ok(None);
+                }
+                let (parts, note) = compute()?;
+                tallies.push(crate::shard::Tally {
+                    label: label.to_string(),
+                    parts,
+                    note,
+                });
+                Ok(None)
+            }
+            Mc::Merge {
+                tallies,
+                from_tasks: true,
+                ..
+            } => {
+                let Some(t) = tallies.pop_front() else {
+                    anyhow::bail!(
+                        "the tasks hold fewer results than this run takes (next: `{label}`)"
+                    );
+                };
+                if t.label != label {
+                    anyhow::bail!(
+                        "the tasks' next result is `{}`, this run's is `{label}`: not tasks of \
+                         this sweep",
+                        t.label
+                    );
+                }
+                finish(&t.parts, &t.note).map(Some)
+            }
         }
     }
 
@@ -443,7 +688,32 @@ impl Ctx {
     /// Checks the run's cost estimate against the work budget (refused unless `--force`)
     /// and records it in `meta.json` as `work_estimate`. Call it before the work starts.
     pub fn work(&mut self, estimate: &crate::cost::Estimate) -> Result<()> {
-        estimate.check(self.force)?;
+        if self.estimate {
+            let mine = match &self.mc {
+                crate::shard::Mc::Shard { shard, .. } => estimate.per_shard(shard.count()),
+                _ => estimate.clone(),
+            };
+            let ops = mine.total();
+            println!(
+                "{}",
+                serde_json::json!({
+                    "experiment": self.name,
+                    "operations": ops,
+                    "seconds_one_core": ops / crate::cost::NOMINAL_RATE,
+                    "nominal_rate_per_core": crate::cost::NOMINAL_RATE,
+                })
+            );
+            return Err(PrintOnly("--estimate").into());
+        }
+        match &self.mc {
+            crate::shard::Mc::Whole => estimate.check(self.force)?,
+            // A shard does its part of the Monte Carlo (which dominates every producer).
+            crate::shard::Mc::Shard { shard, .. } => {
+                estimate.per_shard(shard.count()).check(self.force)?
+            }
+            // The shards did the Monte Carlo; a merge was accepted when they were.
+            crate::shard::Mc::Merge { .. } => {}
+        }
         self.record("work_estimate", estimate.meta());
         Ok(())
     }
@@ -530,6 +800,40 @@ impl Ctx {
         });
         if let Some(m) = meta.as_object_mut() {
             m.extend(self.extra.clone());
+        }
+        match std::mem::take(&mut self.mc) {
+            crate::shard::Mc::Whole => {}
+            crate::shard::Mc::Shard {
+                shard,
+                argv,
+                tallies,
+                task,
+            } => {
+                if tallies.is_empty() && task.is_none() {
+                    anyhow::bail!("{}: this run has no Monte Carlo tally to shard", self.name);
+                }
+                let header = crate::shard::header(&self.name, &argv, shard, task, &tallies);
+                if let Some(m) = meta.as_object_mut() {
+                    m.insert("shard".into(), serde_json::json!(shard.to_string()));
+                }
+                crate::shard::write(&self.path(crate::shard::SHARD_FILE), &header, &tallies)?;
+            }
+            crate::shard::Mc::Merge {
+                tallies,
+                provenance,
+                ..
+            } => {
+                if let Some(t) = tallies.front() {
+                    anyhow::bail!(
+                        "the shards hold tallies this run did not take (first: `{}`): not \
+                         shards of this run",
+                        t.label
+                    );
+                }
+                if let Some(m) = meta.as_object_mut() {
+                    m.insert("merged_from".into(), provenance);
+                }
+            }
         }
         let path = self.path("meta.json");
         std::fs::write(&path, serde_json::to_string_pretty(&meta)?)

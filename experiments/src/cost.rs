@@ -27,7 +27,9 @@
 //! all), `lbm_diffusion_limit` 9.9·10¹⁰ (46 min; 43 s, the step cap), `accuracy_cost`
 //! 3.1·10¹⁰ with RDE (14.3 min; 14.3 min, partly beside a CI run), `renderings` 1.1·10¹⁰
 //! (4.9 min; 2.6 min), `pt_point_source`
-//! 4.6·10⁹ (2.1 min; 2.1 min), `pt_render` 4.1·10⁸ (11 s; 12 s). So the largest is 29 % of
+//! 4.6·10⁹ (2.1 min; 2.1 min), `pt_render` 4.1·10⁸ (11 s; 12 s), `rde_steady` 9.9·10⁹
+//! (4.6 min; 8 s: the steady solves take far fewer steps than the cap the model assumes),
+//! `rde_stability` 1.4·10⁹ (40 s; 16 s), `rde_controls` 5.3·10⁸ (15 s; 1.4 s). So the largest is 29 % of
 //! the 2-core budget. The test `tests/bounded.rs` refuses an absurd run of each binary and
 //! lets `--force` through.
 
@@ -64,6 +66,18 @@ impl Estimate {
         };
         self.parts.push((what.into(), ops));
         self
+    }
+
+    /// Every part divided by `n` (one of `n` shards of a run whose cost is its Monte Carlo).
+    pub fn per_shard(&self, n: u32) -> Estimate {
+        let k = f64::from(n.max(1));
+        Estimate {
+            parts: self
+                .parts
+                .iter()
+                .map(|(w, v)| (format!("{w} (1/{n} shard)"), v / k))
+                .collect(),
+        }
     }
 
     /// The total in operations.

@@ -96,6 +96,9 @@ pub trait Experiment {
     const TITLE: &'static str;
     /// Whether it takes `--backend`.
     const BACKEND: BackendSupport;
+    /// Whether it is a Monte Carlo producer that takes `--shard i/N` (its estimates come
+    /// through [`Ctx::tally`]; see [`crate::shard`]).
+    const SHARDS: bool = false;
     /// Its flags.
     type Args: clap::Parser + Clone;
     /// What [`Experiment::run`] returns to a caller (tests check claims on it).
@@ -127,17 +130,54 @@ pub trait Experiment {
 /// Runs `X` with `args` (the binary's and the tests' entry point): output directory,
 /// the run, then `meta.json`.
 pub fn run<X: Experiment>(args: &X::Args) -> Result<X::Summary> {
-    let mut ctx = Ctx::for_run(&X::dir_name(args), X::common(args));
+    run_with::<X>(args, None, None)
+}
+
+/// [`run`] with the command-line flags `argv` (a shard records them for the merge) and,
+/// for a merge, the joined shards.
+pub fn run_with<X: Experiment>(
+    args: &X::Args,
+    argv: Option<&[String]>,
+    merged: Option<crate::shard::Joined>,
+) -> Result<X::Summary> {
+    let common = X::common(args);
+    let mut ctx = Ctx::for_run(&X::dir_name(args), common);
+    if let Some(shard) = common.shard {
+        if !X::SHARDS {
+            anyhow::bail!(
+                "--shard {shard}: {} has no Monte Carlo part to shard (producers: {})",
+                X::NAME,
+                producers().join(", ")
+            );
+        }
+        if argv.is_none() {
+            anyhow::bail!("--shard needs the command line (run the binary or `figures`)");
+        }
+    }
+    if let Some(argv) = argv {
+        ctx.set_argv(argv);
+    }
+    if let Some(j) = merged {
+        ctx.merge_from(j);
+    }
     let summary = X::run(&mut ctx, args)?;
     ctx.finish()?;
     Ok(summary)
+}
+
+/// Names of the producers that take `--shard` (`render` and the sharding experiments).
+pub fn producers() -> Vec<&'static str> {
+    std::iter::once("render")
+        .chain(EXPERIMENTS.iter().filter(|e| e.shards).map(|e| e.name))
+        .collect()
 }
 
 /// `main` of experiment `X`'s binary: parses its flags and runs it.
 pub fn main<X: Experiment>() -> Result<()> {
     use clap::Parser as _;
     let args = X::Args::parse();
-    run::<X>(&args).map(|_| ())
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    crate::common::estimate_ok(run_with::<X>(&args, Some(&argv), None).map(|_| ()))
 }
 
 /// The `main` of an experiment's binary: `experiments::experiment_main!(point_source::PointSource);`.
@@ -163,7 +203,11 @@ fn parse<X: Experiment>(argv: &[String]) -> Result<X::Args> {
 }
 
 fn run_argv<X: Experiment>(argv: &[String]) -> Result<()> {
-    run::<X>(&parse::<X>(argv)?).map(|_| ())
+    run_with::<X>(&parse::<X>(argv)?, Some(argv), None).map(|_| ())
+}
+
+fn run_merged<X: Experiment>(argv: &[String], joined: crate::shard::Joined) -> Result<()> {
+    run_with::<X>(&parse::<X>(argv)?, Some(argv), Some(joined)).map(|_| ())
 }
 
 fn promises_argv<X: Experiment>(argv: &[String]) -> Result<Vec<Promise>> {
@@ -181,8 +225,11 @@ pub struct ExperimentEntry {
     pub title: &'static str,
     /// [`Experiment::BACKEND`].
     pub backend: BackendSupport,
+    /// [`Experiment::SHARDS`].
+    pub shards: bool,
     figure_runs: fn(bool) -> Vec<FigureRun>,
     run: fn(&[String]) -> Result<()>,
+    run_merged: fn(&[String], crate::shard::Joined) -> Result<()>,
     promises: fn(&[String]) -> Result<Vec<Promise>>,
     report: fn(&crate::report::Section<'_>) -> Result<String>,
 }
@@ -194,8 +241,10 @@ impl ExperimentEntry {
             name: X::NAME,
             title: X::TITLE,
             backend: X::BACKEND,
+            shards: X::SHARDS,
             figure_runs: X::figure_runs,
             run: run_argv::<X>,
+            run_merged: run_merged::<X>,
             promises: promises_argv::<X>,
             report: X::report,
         }
@@ -209,6 +258,11 @@ impl ExperimentEntry {
     /// Parses `argv` (flags only, no program name) and runs it.
     pub fn run(&self, argv: &[String]) -> Result<()> {
         (self.run)(argv)
+    }
+
+    /// Runs it with `argv` as the merge of `joined` (see [`crate::shard`]).
+    pub fn run_merged(&self, argv: &[String], joined: crate::shard::Joined) -> Result<()> {
+        (self.run_merged)(argv, joined)
     }
 
     /// The files a run with `argv` promises, `meta.json` included.
@@ -262,6 +316,9 @@ pub static EXPERIMENTS: &[ExperimentEntry] = &[
     ExperimentEntry::of::<crate::pt_render::PtRender>(),
     ExperimentEntry::of::<crate::renderings::Renderings>(),
     ExperimentEntry::of::<crate::accuracy_cost::AccuracyCost>(),
+    ExperimentEntry::of::<crate::rde_stability::RdeStability>(),
+    ExperimentEntry::of::<crate::rde_steady::RdeSteady>(),
+    ExperimentEntry::of::<crate::rde_controls::RdeControls>(),
     ExperimentEntry::of::<crate::mitsuba_compare::MitsubaCompare>(),
 ];
 

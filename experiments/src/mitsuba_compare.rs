@@ -29,8 +29,10 @@ use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
 use reference::compare::{Comparison, ImageEstimate, compare};
+use reference::effects::PassSums;
 use reference::mitsuba::{MitsubaConfig, MitsubaError, MitsubaSettings, render};
-use reference::pathtracer::{Contributions, Image, MIN_BATCHES, RenderSettings, render_image};
+use reference::pathtracer::camera::render_image_part;
+use reference::pathtracer::{Contributions, Image, MIN_BATCHES, RenderSettings, TraceOptions};
 use serde::Serialize;
 use solvers::scene::SceneFile;
 use std::path::{Path, PathBuf};
@@ -287,17 +289,38 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
             .max_depth
             .map_or(Contributions::all(), Contributions::up_to),
     };
-    let t0 = Instant::now();
-    let c0 = process_cpu_seconds();
     let sp = out.spinner("mitsuba_compare");
     sp.set_message(format!("our path tracer, {spp} spp"));
-    let ours = render_image(&scene, &settings).context("rendering with our path tracer")?;
+    // CPU seconds are known only where the render ran (NaN in a merge).
+    let cpu = std::cell::Cell::new(f64::NAN);
+    let tallied = out.tally(
+        "our path tracer",
+        |shard| {
+            let t0 = Instant::now();
+            let c0 = process_cpu_seconds();
+            let sums = render_image_part(&scene, &settings, &TraceOptions::default(), shard)
+                .context("rendering with our path tracer")?;
+            if let (Some(a), Some(b)) = (c0, process_cpu_seconds()) {
+                cpu.set(b - a);
+            }
+            Ok(vec![PassSums {
+                sums,
+                seconds: t0.elapsed().as_secs_f64(),
+            }])
+        },
+        |parts| {
+            Ok((
+                Image::from_sums(width, height, &parts[0].sums)?,
+                parts[0].seconds,
+            ))
+        },
+    )?;
     sp.finish_and_clear();
-    let ours_seconds = t0.elapsed().as_secs_f64();
-    let ours_cpu = match (c0, process_cpu_seconds()) {
-        (Some(a), Some(b)) => b - a,
-        _ => f64::NAN,
+    let Some((ours, ours_seconds)) = tallied else {
+        // A shard: Mitsuba's side and the comparison run in the merge.
+        return Ok(Vec::new());
     };
+    let ours_cpu = cpu.get();
     out.timing("ours", ours_seconds);
     let ours_est = estimate(&ours, args.batches);
     let ours_paths = (width * height) as f64 * f64::from(spp);
@@ -502,6 +525,7 @@ impl Experiment for MitsubaCompare {
     const NAME: &'static str = "mitsuba_compare";
     const TITLE: &'static str = "Path tracer vs Mitsuba 3";
     const BACKEND: BackendSupport = BackendSupport::CpuOnly("both path tracers run on the CPU");
+    const SHARDS: bool = true;
     type Args = Args;
     type Summary = Vec<Row>;
 

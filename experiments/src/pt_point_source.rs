@@ -15,6 +15,8 @@ use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
+use reference::effects::PassSums;
+use reference::pathtracer::infinite::shells_from;
 use reference::pathtracer::{InfiniteMedium, PathSettings};
 use reference::point_source::{cda, grosjean};
 use reference::quadrature::simpson;
@@ -185,11 +187,25 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<ShellRow>> {
         for &c in &albedos {
             pb.set_message(format!("c={c} g={g}"));
             let medium = InfiniteMedium::new(c, phase)?;
-            let t0 = Instant::now();
-            let shells = medium
-                .shells(&edges, &settings)
-                .with_context(|| format!("shell tallies for c = {c}, g = {g}"))?;
-            let seconds = t0.elapsed().as_secs_f64();
+            let what = format!("shell tallies for c = {c}, g = {g}");
+            let tallied = out.tally(
+                &what,
+                |shard| {
+                    let t0 = Instant::now();
+                    let sums = medium
+                        .shells_part(&edges, &settings, shard)
+                        .with_context(|| what.clone())?;
+                    Ok(vec![PassSums {
+                        sums,
+                        seconds: t0.elapsed().as_secs_f64(),
+                    }])
+                },
+                |parts| Ok((shells_from(&edges, &parts[0].sums)?, parts[0].seconds)),
+            )?;
+            let Some((shells, seconds)) = tallied else {
+                pb.inc(1);
+                continue;
+            };
             out.timing(format!("c={c} g={g}"), seconds);
             let exact = if g == 0.0 {
                 Some(ExactPointSource::new(c)?)
@@ -245,6 +261,9 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<ShellRow>> {
         }
     }
     pb.finish_and_clear();
+    if out.sharding() {
+        return Ok(rows);
+    }
     out.csv("shells.csv", &rows)?;
     out.csv("runs.csv", &runs)?;
     plots(out, &albedos, &gs, &rows)?;
@@ -352,6 +371,7 @@ impl Experiment for PtPointSource {
     const NAME: &'static str = "pt_point_source";
     const TITLE: &'static str = "Path tracer: point-source shells vs exact";
     const BACKEND: BackendSupport = BackendSupport::CpuOnly("the path tracer runs on the CPU");
+    const SHARDS: bool = true;
     type Args = Args;
     type Summary = Vec<ShellRow>;
 

@@ -17,8 +17,9 @@ use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
+use reference::effects::PassSums;
 use reference::pathtracer::{
-    Contributions, Image, Interpolation, RenderSettings, TraceOptions, render_image_with,
+    Contributions, Image, Interpolation, RenderSettings, TraceOptions, camera::render_image_part,
 };
 use serde::Serialize;
 use solvers::noise::Perlin;
@@ -211,13 +212,29 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<TimingRow>> {
             interpolation,
             majorant_block: block,
         };
-        let (t0, c0) = (Instant::now(), cpu_seconds());
         let sp = out.spinner("pt_render");
         sp.set_message(format!("{name} majorants, {spp} spp × {res}² pixels"));
-        let img = render_image_with(&scene, &settings, &opts)?;
+        // CPU seconds are known only where the render ran (NaN in a merge).
+        let cpu = std::cell::Cell::new(f64::NAN);
+        let [w, h] = [res, res];
+        let tallied = out.tally(
+            &format!("render with {name} majorants"),
+            |shard| {
+                let (t0, c0) = (Instant::now(), cpu_seconds());
+                let sums = render_image_part(&scene, &settings, &opts, shard)?;
+                cpu.set(cpu_seconds() - c0);
+                Ok(vec![PassSums {
+                    sums,
+                    seconds: t0.elapsed().as_secs_f64(),
+                }])
+            },
+            |parts| Ok((Image::from_sums(w, h, &parts[0].sums)?, parts[0].seconds)),
+        )?;
         sp.finish_and_clear();
-        let seconds = t0.elapsed().as_secs_f64();
-        let cpu = cpu_seconds() - c0;
+        let Some((img, seconds)) = tallied else {
+            continue;
+        };
+        let cpu = cpu.get();
         out.timing(format!("render {name}"), seconds);
         let paths = (res * res) as u64 * spp as u64;
         let lit: Vec<(f64, f64)> = img
@@ -245,6 +262,9 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<TimingRow>> {
         if first.is_none() {
             first = Some(img);
         }
+    }
+    if out.sharding() {
+        return Ok(rows);
     }
     out.csv("timing.csv", &rows)?;
     if let Some(img) = first {
@@ -308,6 +328,7 @@ impl Experiment for PtRender {
     const NAME: &'static str = "pt_render";
     const TITLE: &'static str = "Path tracer: throughput";
     const BACKEND: BackendSupport = BackendSupport::CpuOnly("the path tracer runs on the CPU");
+    const SHARDS: bool = true;
     type Args = Args;
     type Summary = Vec<TimingRow>;
 

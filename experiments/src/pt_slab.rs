@@ -17,6 +17,7 @@ use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
+use reference::effects::PassSums;
 use reference::pathtracer::{PathSettings, SlabMedium};
 use reference::transport::hfunction::plane_albedo;
 use reference::transport::slab::Slab;
@@ -186,11 +187,25 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<SlabRow>> {
                     .with_context(|| format!("slab τ = {tau}, c = {c}, g = {g}"))?;
                 for &mu0 in &mu0s {
                     pb.set_message(format!("τ={tau} c={c} g={g} μ0={mu0}"));
-                    let t0 = Instant::now();
-                    let t = slab
-                        .simulate(mu0, &settings)
-                        .with_context(|| format!("slab τ = {tau}, c = {c}, g = {g}, μ0 = {mu0}"))?;
-                    let seconds = t0.elapsed().as_secs_f64();
+                    let what = format!("slab τ = {tau}, c = {c}, g = {g}, μ0 = {mu0}");
+                    let tallied = out.tally(
+                        &what,
+                        |shard| {
+                            let t0 = Instant::now();
+                            let sums = slab
+                                .simulate_part(mu0, &settings, shard)
+                                .with_context(|| what.clone())?;
+                            Ok(vec![PassSums {
+                                sums,
+                                seconds: t0.elapsed().as_secs_f64(),
+                            }])
+                        },
+                        |parts| Ok((slab.tally(mu0, &parts[0].sums)?, parts[0].seconds)),
+                    )?;
+                    pb.inc(1);
+                    let Some((t, seconds)) = tallied else {
+                        continue;
+                    };
                     let exact = Slab::new(tau, c, g)?.solve(mu0).with_context(|| {
                         format!("adding–doubling for τ = {tau}, c = {c}, g = {g}")
                     })?;
@@ -222,12 +237,14 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<SlabRow>> {
                         paths,
                         seconds,
                     });
-                    pb.inc(1);
                 }
             }
         }
     }
     pb.finish_and_clear();
+    if out.sharding() {
+        return Ok(rows);
+    }
     out.csv("slab.csv", &rows)?;
     // R and T_d against albedo at the first μ0, one colour per (τ, g).
     let mu0 = mu0s[0];
@@ -290,6 +307,7 @@ impl Experiment for PtSlab {
     const NAME: &'static str = "pt_slab";
     const TITLE: &'static str = "Path tracer: slabs vs adding–doubling and H";
     const BACKEND: BackendSupport = BackendSupport::CpuOnly("the path tracer runs on the CPU");
+    const SHARDS: bool = true;
     type Args = Args;
     type Summary = Vec<SlabRow>;
 

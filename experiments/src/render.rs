@@ -32,7 +32,7 @@ use crate::common::{BackendArgs, CommonArgs, Output, PrecisionArg, value_names};
 use crate::methods::Renderer;
 use anyhow::{Context, Result, bail};
 use plotters::prelude::*;
-use reference::effects::{Component, render_components};
+use reference::effects::{Component, components_from_parts, render_components_part};
 use reference::pathtracer::{Contributions, RenderSettings};
 use serde::Serialize;
 use solvers::Precision;
@@ -192,6 +192,34 @@ fn contributions_json(c: &Contributions) -> serde_json::Value {
 
 /// Runs the experiment.
 pub fn run(args: &Args) -> Result<RenderOutput> {
+    run_with(args, None, None)
+}
+
+/// The binary's entry: [`run_with`] with the process's command line (a `--shard` run
+/// records it for `merge`).
+pub fn main() -> Result<()> {
+    use clap::Parser as _;
+    let args = Args::parse();
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    crate::common::estimate_ok(run_with(&args, Some(&argv), None).map(|_| ()))
+}
+
+/// Parses `argv` (flags only) and runs it as the merge of `joined`.
+pub fn run_merged(argv: &[String], joined: crate::shard::Joined) -> Result<()> {
+    use clap::Parser as _;
+    let args =
+        Args::try_parse_from(std::iter::once("render".to_string()).chain(argv.iter().cloned()))
+            .with_context(|| format!("render {}", argv.join(" ")))?;
+    run_with(&args, Some(argv), Some(joined)).map(|_| ())
+}
+
+/// [`run`] with the command line `argv` (for `--shard`) and, for a merge, the joined
+/// shards (see [`crate::shard`]).
+pub fn run_with(
+    args: &Args,
+    argv: Option<&[String]>,
+    merged: Option<crate::shard::Joined>,
+) -> Result<RenderOutput> {
     let mut file = SceneFile::load(&args.scene)
         .with_context(|| format!("loading --scene {}", args.scene.display()))?;
     let quick = args.common.quick;
@@ -378,6 +406,18 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
         eprintln!("warning: {}: {w}", args.scene.display());
     }
     let mut out = Output::for_run("render", &args.common);
+    if let Some(shard) = args.common.shard {
+        if !pt {
+            bail!("--shard {shard}: only the path tracer (--method pt) is sharded");
+        }
+        let Some(argv) = argv else {
+            bail!("--shard needs the command line (run the `render` binary)");
+        };
+        out.set_argv(argv);
+    }
+    if let Some(j) = merged {
+        out.merge_from(j);
+    }
     out.work(&work)?;
     out.record("warnings", serde_json::json!(warnings));
     out.start(serde_json::json!({
@@ -419,9 +459,19 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             };
             let sp = out.spinner("render");
             sp.set_message(format!("path tracing channel {c}, {spp} spp"));
-            let comp = render_components(scene, &effects, &settings)
-                .with_context(|| format!("path tracing channel {c}"))?;
+            let what = format!("path tracing channel {c}");
+            let tallied = out.tally(
+                &what,
+                |shard| {
+                    render_components_part(scene, &effects, &settings, shard)
+                        .with_context(|| what.clone())
+                },
+                |parts| Ok(components_from_parts(scene, &effects, parts)?),
+            )?;
             sp.finish_and_clear();
+            let Some(comp) = tallied else {
+                continue;
+            };
             for (component, contributions, seconds) in &comp.renders {
                 let name = format!(
                     "pt_{}",
@@ -532,6 +582,10 @@ pub fn run(args: &Args) -> Result<RenderOutput> {
             json,
         )
     };
+    if out.sharding() {
+        out.finish()?;
+        return Ok(result);
+    }
     for p in &result.passes {
         out.timing(format!("{} (channel {})", p.pass, p.channel), p.seconds);
     }

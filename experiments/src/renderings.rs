@@ -267,7 +267,8 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
         let bar = progress(albedos.len() as u64, &args.common, &scene.name);
         for &albedo in &albedos {
             set_albedo(scene, albedo);
-            render_reference(scene, spp, args.seed).with_context(|| format!("albedo {albedo}"))?;
+            render_reference(out, scene, spp, args.seed)
+                .with_context(|| format!("albedo {albedo}"))?;
             out.timing(
                 format!("{}/a{albedo}/reference", scene.name),
                 scene.reference_seconds,

@@ -2,15 +2,14 @@
 //! file coarsened and re-framed, its path-traced reference with the reference's own noise,
 //! and the image errors of a method against that reference.
 
-use crate::common::{parse_list, workspace_root};
+use crate::common::{Ctx, parse_list, workspace_root};
 use crate::images::{relative_noise, relative_rmse, relative_rmse_debiased};
 use anyhow::{Context, Result, bail};
-use reference::effects::{PtComponents, render_components};
+use reference::effects::{PtComponents, components_from_parts, render_components_part};
 use reference::pathtracer::{Contributions, RenderSettings};
 use solvers::pipeline::{self, ChannelImages, PipelineConfig};
 use solvers::scene::{EffectSelection, Effects, Scene, SceneFile};
 use std::path::PathBuf;
-use std::time::Instant;
 
 /// A scene prepared for comparison with its reference: its channels, effect set and reference.
 #[derive(Debug)]
@@ -120,23 +119,37 @@ pub fn load(
 }
 
 /// Renders the path-traced reference of every channel (`spp` ≥ 16 samples per pixel,
-/// up to 32 batches).
-pub fn render_reference(scene: &mut Prepared, spp: u32, seed: u64) -> Result<()> {
+/// up to 32 batches), one [`Ctx::tally`] per channel. Returns whether the reference is
+/// there: with `--shard` only this shard's batches are computed (for the merge) and it is
+/// not. `reference_seconds` is the render time (summed over shards in a merge).
+pub fn render_reference(ctx: &mut Ctx, scene: &mut Prepared, spp: u32, seed: u64) -> Result<bool> {
     let settings = RenderSettings {
         spp,
         seed,
         batches: 32.min(spp),
         contributions: Contributions::all(),
     };
-    let t0 = Instant::now();
-    scene.reference = scene
-        .channels
-        .iter()
-        .map(|ch| render_components(ch, &scene.effects, &settings))
-        .collect::<Result<Vec<_>, _>>()
-        .with_context(|| format!("path-traced reference of {}", scene.name))?;
-    scene.reference_seconds = t0.elapsed().as_secs_f64();
-    Ok(())
+    scene.reference.clear();
+    scene.reference_seconds = 0.0;
+    for (c, ch) in scene.channels.iter().enumerate() {
+        let what = format!("path-traced reference of {}, channel {c}", scene.name);
+        let tallied = ctx.tally(
+            &what,
+            |shard| {
+                render_components_part(ch, &scene.effects, &settings, shard)
+                    .with_context(|| what.clone())
+            },
+            |parts| {
+                let seconds: f64 = parts.iter().map(|p| p.seconds).sum();
+                Ok((components_from_parts(ch, &scene.effects, parts)?, seconds))
+            },
+        )?;
+        if let Some((comp, seconds)) = tallied {
+            scene.reference.push(comp);
+            scene.reference_seconds += seconds;
+        }
+    }
+    Ok(scene.reference.len() == scene.channels.len())
 }
 
 /// The errors of a run against the prepared reference: (total, debiased, single, multiple).

@@ -16,7 +16,8 @@
 //! add in quadrature.
 
 use crate::ReferenceError;
-use crate::pathtracer::{Contributions, Image, RenderSettings, render_image};
+use crate::pathtracer::camera::render_image_part;
+use crate::pathtracer::{BatchSums, Contributions, Image, RenderSettings, Shard, TraceOptions};
 use solvers::scene::{Effect, Effects, Scene};
 
 /// One of the pipeline's image components.
@@ -137,8 +138,65 @@ pub fn render_components(
     effects: &Effects,
     settings: &RenderSettings,
 ) -> Result<PtComponents, ReferenceError> {
+    let parts = render_components_part(scene, effects, settings, Shard::WHOLE)?;
+    components_from_parts(scene, effects, &parts)
+}
+
+/// One pass of [`render_components_part`]: its per-batch sums and the seconds it took.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PassSums {
+    /// Per-batch pixel sums ([`render_image_part`]).
+    pub sums: BatchSums,
+    /// Wall-clock seconds of this part (summed over shards once joined).
+    pub seconds: f64,
+}
+
+/// [`render_components`] for `shard`'s batches: one [`PassSums`] per pass of
+/// [`pt_passes`], in order.
+pub fn render_components_part(
+    scene: &Scene,
+    effects: &Effects,
+    settings: &RenderSettings,
+    shard: Shard,
+) -> Result<Vec<PassSums>, ReferenceError> {
+    pt_passes(scene, effects)
+        .into_iter()
+        .enumerate()
+        .map(|(k, pass)| {
+            let s = RenderSettings {
+                contributions: pass.contributions,
+                seed: settings.seed.wrapping_add(k as u64),
+                ..*settings
+            };
+            let t0 = std::time::Instant::now();
+            let sums = render_image_part(&pass.scene, &s, &TraceOptions::default(), shard)?;
+            Ok(PassSums {
+                sums,
+                seconds: t0.elapsed().as_secs_f64(),
+            })
+        })
+        .collect()
+}
+
+/// The components of a whole render from its passes' joined sums
+/// ([`render_components_part`] of the same scene and effects).
+pub fn components_from_parts(
+    scene: &Scene,
+    effects: &Effects,
+    parts: &[PassSums],
+) -> Result<PtComponents, ReferenceError> {
     let camera = scene.camera.ok_or(ReferenceError::NoCamera)?;
     let [w, h] = camera.resolution;
+    let passes = pt_passes(scene, effects);
+    if passes.len() != parts.len() {
+        return Err(ReferenceError::ShardMismatch {
+            what: format!(
+                "the scene's effects need {} path-traced passes, the sums hold {}",
+                passes.len(),
+                parts.len()
+            ),
+        });
+    }
     let mut out = PtComponents {
         total: zero(w, h),
         single: zero(w, h),
@@ -147,19 +205,10 @@ pub fn render_components(
         background: zero(w, h),
         renders: Vec::new(),
     };
-    for (k, pass) in pt_passes(scene, effects).into_iter().enumerate() {
-        let s = RenderSettings {
-            contributions: pass.contributions,
-            seed: settings.seed.wrapping_add(k as u64),
-            ..*settings
-        };
-        let t0 = std::time::Instant::now();
-        let im = render_image(&pass.scene, &s)?;
-        out.renders.push((
-            pass.component,
-            pass.contributions,
-            t0.elapsed().as_secs_f64(),
-        ));
+    for (pass, part) in passes.into_iter().zip(parts) {
+        let im = Image::from_sums(w, h, &part.sums)?;
+        out.renders
+            .push((pass.component, pass.contributions, part.seconds));
         let target = match pass.component {
             Component::Single => &mut out.single,
             Component::Multiple => &mut out.multiple,

@@ -75,6 +75,20 @@ pub enum ReferenceError {
         /// What, in words.
         what: &'static str,
     },
+    /// A `--shard i/N` that names no shard.
+    #[error("shard `{shard}`: {reason}")]
+    BadShard {
+        /// The shard as given.
+        shard: String,
+        /// What is wrong.
+        reason: &'static str,
+    },
+    /// Shards (or per-batch sums) that do not belong to one run, or do not cover it.
+    #[error("shards do not merge: {what}")]
+    ShardMismatch {
+        /// What differs or is missing.
+        what: String,
+    },
     /// An iterative solve did not converge (a bug or a parameter at the edge of the domain).
     #[error("{what} did not converge (parameter {})", Compact(*.parameter))]
     NoConvergence {

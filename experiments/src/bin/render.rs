@@ -1,4 +1,4 @@
 //! Binary of [`experiments::render`] (a tool, not one of the figures: it is not in the registry).
 fn main() -> anyhow::Result<()> {
-    experiments::experiment::tool_main(experiments::render::run)
+    experiments::render::main()
 }

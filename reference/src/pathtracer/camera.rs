@@ -38,10 +38,11 @@
 
 use super::TraceOptions;
 use super::contributions::Contributions;
-use super::estimators::{batch_sizes, check_batches};
+use super::estimators::check_batches;
 use super::math::{Vec3, at};
 use super::phase::sample_dir;
 use super::rng::Rng;
+use super::shard::{BatchSums, Shard};
 use super::world::{Event, World};
 use crate::ReferenceError;
 use rayon::prelude::*;
@@ -90,67 +91,81 @@ pub fn render_image_with(
     settings: &RenderSettings,
     options: &TraceOptions,
 ) -> Result<Image, ReferenceError> {
+    let sums = render_image_part(scene, settings, options, Shard::WHOLE)?;
+    let camera = scene.camera.ok_or(ReferenceError::NoCamera)?;
+    let [width, height] = camera.resolution;
+    Image::from_sums(width, height, &sums)
+}
+
+/// [`render_image_with`] for `shard`'s batches: per batch, each pixel's sum of radiance
+/// samples (one bin per pixel, row-major), the bits the unsharded render sums.
+pub fn render_image_part(
+    scene: &Scene,
+    settings: &RenderSettings,
+    options: &TraceOptions,
+    shard: Shard,
+) -> Result<BatchSums, ReferenceError> {
     let camera = scene.camera.ok_or(ReferenceError::NoCamera)?;
     check_batches(settings.batches, settings.spp as u64, "spp")?;
     settings.contributions.validate()?;
     let world = World::new(scene, options)?;
     let rays = CameraRays::new(&camera);
     let [width, height] = camera.resolution;
+    let pixels = width * height;
     let spp = settings.spp as u64;
-    let sizes = batch_sizes(spp, settings.batches);
-    let mut mean = vec![0.0; width * height];
-    let mut stderr = vec![0.0; width * height];
-    mean.par_chunks_mut(width)
-        .zip(stderr.par_chunks_mut(width))
+    let mut out = BatchSums::zeroed(spp, settings.batches, pixels, shard)?;
+    let ranges = out.sample_ranges();
+    let nb = ranges.len();
+    // Pixel-major while rendering (rows in parallel), batch-major in the result.
+    let mut by_pixel = vec![0.0; pixels * nb];
+    by_pixel
+        .par_chunks_mut(width * nb)
         .enumerate()
-        .for_each(|(y, (mrow, srow))| {
+        .for_each(|(y, row)| {
             for x in 0..width {
                 let pixel = (y * width + x) as u64;
-                let mut acc = Scalar::default();
-                let mut s = 0u64;
-                for &n in &sizes {
+                for (k, r) in ranges.iter().enumerate() {
                     let mut sum = 0.0;
-                    for _ in 0..n {
+                    for s in r.clone() {
                         let mut rng = Rng::new(settings.seed, pixel * spp + s);
                         let (o, d) = rays.ray(x as f64 + rng.uniform(), y as f64 + rng.uniform());
                         sum += radiance(&world, o, d, &settings.contributions, &mut rng);
-                        s += 1;
                     }
-                    acc.add(sum, n);
+                    row[x * nb + k] = sum;
                 }
-                (mrow[x], srow[x]) = acc.finish();
             }
         });
-    Ok(Image {
-        width,
-        height,
-        mean,
-        stderr,
-    })
-}
-
-/// Weighted batch means of one scalar (see `estimators`).
-#[derive(Debug, Default, Clone, Copy)]
-struct Scalar {
-    n: u64,
-    batches: u32,
-    mean: f64,
-    m2: f64,
-}
-
-impl Scalar {
-    fn add(&mut self, sum: f64, n: u64) {
-        self.n += n;
-        self.batches += 1;
-        let x = sum / n as f64;
-        let d = x - self.mean;
-        self.mean += d * (n as f64 / self.n as f64);
-        self.m2 += n as f64 * d * (x - self.mean);
+    for p in 0..pixels {
+        for k in 0..nb {
+            out.sums[k * pixels + p] = by_pixel[p * nb + k];
+        }
     }
+    Ok(out)
+}
 
-    fn finish(&self) -> (f64, f64) {
-        let denom = (self.batches.max(2) - 1) as f64 * self.n as f64;
-        (self.mean, (self.m2.max(0.0) / denom).sqrt())
+impl Image {
+    /// The image of a whole render from its joined per-batch sums ([`render_image_part`]).
+    pub fn from_sums(
+        width: usize,
+        height: usize,
+        sums: &BatchSums,
+    ) -> Result<Self, ReferenceError> {
+        if sums.bins != width * height {
+            return Err(ReferenceError::ShardMismatch {
+                what: format!(
+                    "a {width}×{height} image has {} pixels, these sums {} bins",
+                    width * height,
+                    sums.bins
+                ),
+            });
+        }
+        let est = sums.estimates()?;
+        Ok(Image {
+            width,
+            height,
+            mean: est.iter().map(|e| e.mean).collect(),
+            stderr: est.iter().map(|e| e.stderr).collect(),
+        })
     }
 }
 

@@ -17,6 +17,7 @@
 //! are summed chunk by chunk in a fixed order whose chunk size depends only on the path count,
 //! never on the number of threads, so every result is bit-identical for any thread count.
 
+use super::shard::{BatchSums, Shard};
 use crate::ReferenceError;
 use rayon::prelude::*;
 
@@ -142,13 +143,33 @@ impl BatchMeans {
 /// Runs paths `0..paths` in `batches` batches: `path(i, tally)` adds path `i`'s scores to the
 /// `bins` entries of `tally`. Within a batch, paths are summed in chunks processed in
 /// parallel and combined in chunk order; the chunk size depends only on the batch size.
-pub(crate) fn run_paths<F>(paths: u64, batches: u32, bins: usize, path: F) -> Vec<Estimate>
+pub(crate) fn run_paths<F>(
+    paths: u64,
+    batches: u32,
+    bins: usize,
+    path: F,
+) -> Result<Vec<Estimate>, ReferenceError>
 where
     F: Fn(u64, &mut [f64]) + Sync,
 {
-    let mut acc = BatchMeans::new(bins);
-    let mut start = 0u64;
-    for n in batch_sizes(paths, batches) {
+    run_batches(paths, batches, bins, Shard::WHOLE, path)?.estimates()
+}
+
+/// [`run_paths`] for `shard`'s batches only: their per-batch sums, the same bits the
+/// unsharded run computes for those batches (see [`shard`](super::shard)).
+pub(crate) fn run_batches<F>(
+    paths: u64,
+    batches: u32,
+    bins: usize,
+    shard: Shard,
+    path: F,
+) -> Result<BatchSums, ReferenceError>
+where
+    F: Fn(u64, &mut [f64]) + Sync,
+{
+    let mut out = BatchSums::zeroed(paths, batches, bins, shard)?;
+    for (k, range) in out.sample_ranges().into_iter().enumerate() {
+        let (start, n) = (range.start, range.end - range.start);
         let chunk = n.div_ceil(256).max(64);
         let chunks: Vec<(u64, u64)> = (0..n.div_ceil(chunk))
             .map(|c| (start + c * chunk, (start + (c + 1) * chunk).min(start + n)))
@@ -163,16 +184,14 @@ where
                 t
             })
             .collect();
-        let mut sums = vec![0.0; bins];
+        let sums = &mut out.sums[k * bins..(k + 1) * bins];
         for t in &partial {
             for (s, v) in sums.iter_mut().zip(t) {
                 *s += v;
             }
         }
-        acc.add(&sums, n);
-        start += n;
     }
-    acc.finish()
+    Ok(out)
 }
 
 /// The complementary error function, with fractional error below 1.2·10⁻⁷ everywhere
@@ -246,7 +265,8 @@ mod tests {
         let est = run_paths(paths, 64, 1, |i, t| {
             let mut rng = super::super::rng::Rng::new(5, i);
             t[0] += rng.exponential();
-        });
+        })
+        .unwrap();
         let expected = 1.0 / (paths as f64).sqrt();
         // Relative sampling error of s with 63 dof is 1/√126 ≈ 9 %; allow 4 of them.
         assert!(

@@ -29,11 +29,12 @@
 //! shells per run, runs with at least one |z| > 3 occurred in 6 % (c = 0.3) and 12 %
 //! (c = 0.99) of the calibration runs.
 
-use super::estimators::{Estimate, check_batches, run_paths};
+use super::estimators::{Estimate, check_batches, run_batches};
 use super::fluence::PathSettings;
 use super::math::{Vec3, at, dot};
 use super::phase::{sample_dir, uniform_sphere};
 use super::rng::Rng;
+use super::shard::{BatchSums, Shard};
 use crate::ReferenceError;
 use solvers::scene::Phase;
 
@@ -81,6 +82,18 @@ impl InfiniteMedium {
         edges: &[f64],
         settings: &PathSettings,
     ) -> Result<Vec<Shell>, ReferenceError> {
+        let sums = self.shells_part(edges, settings, Shard::WHOLE)?;
+        shells_from(edges, &sums)
+    }
+
+    /// [`InfiniteMedium::shells`] for `shard`'s batches: their per-batch sums (3 bins per
+    /// shell), for [`shells_from`] once joined.
+    pub fn shells_part(
+        &self,
+        edges: &[f64],
+        settings: &PathSettings,
+        shard: Shard,
+    ) -> Result<BatchSums, ReferenceError> {
         if edges.len() < 2 {
             return Err(ReferenceError::BadParameter {
                 name: "edges",
@@ -112,66 +125,89 @@ impl InfiniteMedium {
         let k = edges.len() - 1;
         let r2: Vec<f64> = edges.iter().map(|r| r * r).collect();
         let inv_dr: Vec<f64> = edges.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect();
-        let est = run_paths(settings.paths, settings.batches, 3 * k, |i, tally| {
-            let mut rng = Rng::new(settings.seed, i);
-            let mut p: Vec3 = [0.0; 3];
-            let mut d = uniform_sphere(rng.uniform(), rng.uniform());
-            let mut depth = 0u32;
-            loop {
-                let len = rng.exponential();
-                // Chord lengths of the segment inside the balls r ≤ r_m. Only edges between
-                // the segment's smallest and largest radius need a square root: smaller balls
-                // hold none of it, larger ones all of it.
-                let b = dot(p, d);
-                let c0 = dot(p, p);
-                let t_near = (-b).clamp(0.0, len);
-                let rmin2 = (c0 + t_near * (2.0 * b + t_near)).max(0.0);
-                let rmax2 = c0.max(c0 + len * (2.0 * b + len));
-                let lo = r2.partition_point(|&e| e <= rmin2);
-                let hi = r2.partition_point(|&e| e < rmax2);
-                let chord = |m: usize| {
-                    let rr = r2[m];
-                    if rr <= rmin2 {
-                        0.0
-                    } else if rr >= rmax2 {
-                        len
-                    } else {
-                        let s = (b * b - (c0 - rr)).max(0.0).sqrt();
-                        ((-b + s).min(len) - (-b - s).max(0.0)).max(0.0)
+        run_batches(
+            settings.paths,
+            settings.batches,
+            3 * k,
+            shard,
+            |i, tally| {
+                let mut rng = Rng::new(settings.seed, i);
+                let mut p: Vec3 = [0.0; 3];
+                let mut d = uniform_sphere(rng.uniform(), rng.uniform());
+                let mut depth = 0u32;
+                loop {
+                    let len = rng.exponential();
+                    // Chord lengths of the segment inside the balls r ≤ r_m. Only edges between
+                    // the segment's smallest and largest radius need a square root: smaller balls
+                    // hold none of it, larger ones all of it.
+                    let b = dot(p, d);
+                    let c0 = dot(p, p);
+                    let t_near = (-b).clamp(0.0, len);
+                    let rmin2 = (c0 + t_near * (2.0 * b + t_near)).max(0.0);
+                    let rmax2 = c0.max(c0 + len * (2.0 * b + len));
+                    let lo = r2.partition_point(|&e| e <= rmin2);
+                    let hi = r2.partition_point(|&e| e < rmax2);
+                    let chord = |m: usize| {
+                        let rr = r2[m];
+                        if rr <= rmin2 {
+                            0.0
+                        } else if rr >= rmax2 {
+                            len
+                        } else {
+                            let s = (b * b - (c0 - rr)).max(0.0).sqrt();
+                            ((-b + s).min(len) - (-b - s).max(0.0)).max(0.0)
+                        }
+                    };
+                    let first = lo.saturating_sub(1);
+                    let mut below = chord(first);
+                    for j in first..hi.min(k) {
+                        let above = chord(j + 1);
+                        let v = (above - below) * inv_dr[j];
+                        below = above;
+                        tally[j] += v;
+                        if depth > 0 {
+                            tally[k + j] += v;
+                        } else {
+                            tally[2 * k + j] += v;
+                        }
                     }
-                };
-                let first = lo.saturating_sub(1);
-                let mut below = chord(first);
-                for j in first..hi.min(k) {
-                    let above = chord(j + 1);
-                    let v = (above - below) * inv_dr[j];
-                    below = above;
-                    tally[j] += v;
-                    if depth > 0 {
-                        tally[k + j] += v;
-                    } else {
-                        tally[2 * k + j] += v;
+                    if settings.max_depth.is_some_and(|m| depth >= m) {
+                        return;
                     }
+                    p = at(p, d, len);
+                    if rng.uniform() >= self.albedo {
+                        return; // absorbed
+                    }
+                    depth += 1;
+                    d = sample_dir(&self.phase, d, rng.uniform(), rng.uniform());
                 }
-                if settings.max_depth.is_some_and(|m| depth >= m) {
-                    return;
-                }
-                p = at(p, d, len);
-                if rng.uniform() >= self.albedo {
-                    return; // absorbed
-                }
-                depth += 1;
-                d = sample_dir(&self.phase, d, rng.uniform(), rng.uniform());
-            }
-        });
-        Ok((0..k)
-            .map(|j| Shell {
-                r_inner: edges[j],
-                r_outer: edges[j + 1],
-                radial_density: est[j],
-                collided: est[k + j],
-                uncollided: est[2 * k + j],
-            })
-            .collect())
+            },
+        )
     }
+}
+
+/// The shells of a whole run from its joined per-batch sums
+/// ([`InfiniteMedium::shells_part`] with the same `edges`).
+pub fn shells_from(edges: &[f64], sums: &BatchSums) -> Result<Vec<Shell>, ReferenceError> {
+    let k = edges.len().saturating_sub(1);
+    if k == 0 || sums.bins != 3 * k {
+        return Err(ReferenceError::ShardMismatch {
+            what: format!(
+                "{} shell edges need {} bins, these sums hold {}",
+                edges.len(),
+                3 * k,
+                sums.bins
+            ),
+        });
+    }
+    let est = sums.estimates()?;
+    Ok((0..k)
+        .map(|j| Shell {
+            r_inner: edges[j],
+            r_outer: edges[j + 1],
+            radial_density: est[j],
+            collided: est[k + j],
+            uncollided: est[2 * k + j],
+        })
+        .collect())
 }

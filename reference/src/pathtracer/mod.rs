@@ -21,6 +21,7 @@
 //! | [`phase`] | isotropic and Henyey–Greenstein phase functions |
 //! | [`estimators`] | batch means, Šidák thresholds, quantiles |
 //! | [`rng`] | counter-seeded PCG streams |
+//! | [`shard`] | a run's batches split across processes; per-batch sums that merge bit-identically |
 //!
 //! Units: lengths in the grid's units, σt in inverse length, emission j in power per volume
 //! (an isotropic source of radiance j/4π per unit length), light powers in watts; fluence in
@@ -35,6 +36,7 @@ pub(crate) mod math;
 pub mod periodic;
 pub mod phase;
 pub mod rng;
+pub mod shard;
 pub mod slab;
 pub mod tracking;
 pub mod volume;
@@ -46,6 +48,7 @@ pub use estimators::{Estimate, MIN_BATCHES};
 pub use fluence::{Field, Fluence, PathSettings, fluence, fluence_with};
 pub use infinite::{InfiniteMedium, Shell};
 pub use periodic::{Beam, ColumnFluxes, PeriodicSlab, PeriodicTally};
+pub use shard::{BatchSums, Shard};
 pub use slab::{SlabMedium, SlabTally};
 pub use volume::Interpolation;
 

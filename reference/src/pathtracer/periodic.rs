@@ -349,7 +349,7 @@ impl PeriodicSlab {
                     }
                 }
             }
-        });
+        })?;
         let fluxes = |s: &[Estimate]| ColumnFluxes {
             reflectance: s[0],
             transmittance: s[1],

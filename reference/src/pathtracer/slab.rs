@@ -20,10 +20,11 @@
 //! half-space R within |z| ≤ 2.08 of the H-function plane albedo, and the energy balance
 //! within |z| ≤ 1.67.
 
-use super::estimators::{Estimate, check_batches, run_paths};
+use super::estimators::{Estimate, check_batches, run_batches};
 use super::fluence::PathSettings;
 use super::phase::sample_dir;
 use super::rng::Rng;
+use super::shard::{BatchSums, Shard};
 use crate::ReferenceError;
 use solvers::scene::Phase;
 
@@ -77,6 +78,18 @@ impl SlabMedium {
 
     /// Simulates collimated incidence at cosine `mu0` ∈ (0, 1].
     pub fn simulate(&self, mu0: f64, settings: &PathSettings) -> Result<SlabTally, ReferenceError> {
+        let sums = self.simulate_part(mu0, settings, Shard::WHOLE)?;
+        self.tally(mu0, &sums)
+    }
+
+    /// [`SlabMedium::simulate`] for `shard`'s batches: their per-batch sums (four bins: R,
+    /// T_d, A, and the balance without T_dir), for [`SlabMedium::tally`] once joined.
+    pub fn simulate_part(
+        &self,
+        mu0: f64,
+        settings: &PathSettings,
+        shard: Shard,
+    ) -> Result<BatchSums, ReferenceError> {
         if !(mu0 > 0.0 && mu0 <= 1.0) {
             return Err(ReferenceError::BadParameter {
                 name: "mu0",
@@ -86,12 +99,7 @@ impl SlabMedium {
         }
         check_batches(settings.batches, settings.paths, "paths")?;
         let tau = self.tau;
-        let direct = if tau.is_infinite() {
-            0.0
-        } else {
-            (-tau / mu0).exp()
-        };
-        let est = run_paths(settings.paths, settings.batches, 4, |i, t| {
+        run_batches(settings.paths, settings.batches, 4, shard, |i, t| {
             let mut rng = Rng::new(settings.seed, i);
             let mut z = 0.0f64;
             let mut d = [(1.0 - mu0 * mu0).max(0.0).sqrt(), 0.0, mu0];
@@ -121,7 +129,22 @@ impl SlabMedium {
                 depth += 1;
                 d = sample_dir(&self.phase, d, rng.uniform(), rng.uniform());
             }
-        });
+        })
+    }
+
+    /// The tally of a whole run from its joined per-batch sums ([`SlabMedium::simulate_part`]).
+    pub fn tally(&self, mu0: f64, sums: &BatchSums) -> Result<SlabTally, ReferenceError> {
+        if sums.bins != 4 {
+            return Err(ReferenceError::ShardMismatch {
+                what: format!("a slab tally has 4 bins, these sums {}", sums.bins),
+            });
+        }
+        let est = sums.estimates()?;
+        let direct = if self.tau.is_infinite() {
+            0.0
+        } else {
+            (-self.tau / mu0).exp()
+        };
         Ok(SlabTally {
             reflectance: est[0],
             transmittance_diffuse: est[1],

@@ -306,7 +306,8 @@ mod tests {
                     {
                         t[1] += 1.0;
                     }
-                });
+                })
+                .unwrap();
                 for (name, e) in ["ratio", "delta"].iter().zip(&est) {
                     assert!(
                         agrees(e, exact, zmax),
@@ -363,7 +364,8 @@ mod tests {
                 {
                     t[1] += 1.0;
                 }
-            });
+            })
+            .unwrap();
             let zmax = sidak_z(4, 0.0027);
             for e in &est {
                 assert!(agrees(e, exact, zmax), "{interp:?}: {e:?} vs {exact}");
@@ -387,7 +389,8 @@ mod tests {
                     t[k] += 1.0;
                 }
             }
-        });
+        })
+        .unwrap();
         let zmax = sidak_z(marks.len(), 0.0027);
         for (k, &s) in marks.iter().enumerate() {
             let exact = 1.0 - (-tr.volume.optical_depth(o, d, 0.0, s)).exp();

@@ -42,6 +42,11 @@
 //! * [`solve`]: backend dispatch; [`RdeSolution`] carries steps, r, the physical time
 //!   ([`RdeTrace::light_path`] = n·c∆t), the bounds and counts of the medium.
 //! * [`method::RdeMethod`]: the steady RDE as a registered method (`rde[:expanded|verbatim]`).
+//! * [`pm`]: Perona–Malik selective diffusion (thesis Eqs 3.1–3.5) and the containment
+//!   phantoms; [`p1`], [`fe`]: the thesis's P1 and FE schemes as negative controls.
+//! * Experiments `rde_stability` (thesis Fig 4.1 with the measured critical r) and
+//!   `rde_steady` (steady state vs CDA, time to tolerance vs CDA-SOR, phantom containment);
+//!   bench `benches/benches/rde.rs` (one FTCS step against the triad probe).
 //!
 //! ## Time step
 //! r_G = 2/max_p(a_p + 2Σ_s β_ps) (Gershgorin, sufficient for the symmetric conservative
@@ -141,6 +146,12 @@
 //!   multiplies by exactly −5/4 (2D) and −19/8 (3D) for Kt∆ ∈ {1, 10, 100}; from a random
 //!   start on a periodic 6³ grid it grows 2.475× (Kt∆ = 1) and 21.7× (Kt∆ = 0.1) per
 //!   iteration (`c13_…`), the sign alternation of thesis Fig 3.5.
+//! * **Perona–Malik** ([`pm`], thesis Eqs 3.1–3.5): energy diffused with conductances from
+//!   the data volume, clamped source, Neumann walls, capped iterations, and the synthetic
+//!   containment phantoms of spec §3 (gap in an edge, tube, step edge) with leak and fill
+//!   fractions. With Neumann walls the steady E equals E_src on the connected region to
+//!   2.1·10⁻¹¹ (f64), and the flood time across an edge scales as 1/C(edge) within 1.07 over
+//!   σ ∈ {0.05, 0.1, 0.2} (`f25_…`; measurements in [`pm`]).
 //! * **Typos and units** (thesis): the printed δy, δz definitions, "does vary in time" for
 //!   Qe, N/S swapped between Ch. 3 and Ch. 4 (Ch. 4's N = (i + 1, j, k) is used), and φe
 //!   "incorporating c∆t" (here q, with the c∆t = r∆ factor applied by the step).
@@ -149,6 +160,7 @@ pub mod fe;
 pub mod gpu;
 pub mod method;
 pub mod p1;
+pub mod pm;
 
 pub use cpu::CpuRde;
 pub use gpu::GpuRde;

@@ -1,0 +1,2 @@
+//! Binary of [`experiments::rde_controls`].
+experiments::experiment_main!(experiments::rde_controls::RdeControls);
