@@ -375,6 +375,8 @@ fn decode_images(parts: &[PassSums], detail: &str) -> Result<Run> {
                 single: p[1].sums.sums.clone(),
                 multiple: p[2].sums.sums.clone(),
                 emission: p[3].sums.sums.clone(),
+                // The atlas datasets have no environment or sphere light: no background.
+                background: vec![0.0; p[0].sums.sums.len()],
             })
             .collect(),
         seconds: parts.first().map_or(0.0, |p| p.seconds),
@@ -388,6 +390,7 @@ fn to_channel_images(c: &PtComponents) -> ChannelImages {
         single: c.single.mean.clone(),
         multiple: c.multiple.mean.clone(),
         emission: c.emission.mean.clone(),
+        background: c.background.mean.clone(),
     }
 }
 

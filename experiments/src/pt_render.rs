@@ -128,6 +128,7 @@ pub fn cloud_scene(n: usize, albedo: f64, g: f64, res: usize, seed: u64) -> Resu
         Phase::HenyeyGreenstein { g }
     };
     Ok(Scene {
+        interpolation: Default::default(),
         medium,
         phase,
         lights: vec![
@@ -135,6 +136,7 @@ pub fn cloud_scene(n: usize, albedo: f64, g: f64, res: usize, seed: u64) -> Resu
             Light::Environment { radiance: 0.05 },
         ],
         camera: Some(Camera {
+            hide_background: false,
             eye: [0.5, -1.4, 0.9],
             target: [0.5, 0.5, 0.5],
             up: [0.0, 0.0, 1.0],

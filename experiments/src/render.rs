@@ -479,6 +479,7 @@ pub fn run_with(
                         Component::Single => "single",
                         Component::Multiple => "multiple",
                         Component::Emission => "emission",
+                        Component::Background => "background",
                     }
                 );
                 renders.push(serde_json::json!({

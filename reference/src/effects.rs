@@ -8,6 +8,7 @@
 //! | `single` | [`Contributions::single_scattering`] on the scene with only the lights whose single scattering is in the set |
 //! | `multiple` | [`Contributions::multiple_scattering`] (if the scene has lights) + [`Contributions::scattered_emission`] (if emission is in the set) — only if multiple scattering is in the set |
 //! | `emission` | [`Contributions::emission_only`] — if emission is in the set |
+//! | `background` | [`Contributions::background`] (order 0 from the lights) — if background is in the set |
 //!
 //! Every render uses the phase function the effect set implies (isotropic unless
 //! anisotropy is in the set). Each render gets its own seed (`seed + k` for the k-th render
@@ -28,6 +29,8 @@ pub enum Component {
     Multiple,
     /// Order-0 emission.
     Emission,
+    /// Order 0 from the lights (the environment seen through the medium).
+    Background,
 }
 
 /// One path-tracer render that contributes to a component.
@@ -80,8 +83,15 @@ pub fn pt_passes(scene: &Scene, effects: &Effects) -> Vec<PtPass> {
     if emission {
         out.push(PtPass {
             component: Component::Emission,
-            scene: base,
+            scene: base.clone(),
             contributions: Contributions::emission_only(),
+        });
+    }
+    if effects.contains(Effect::Background) {
+        out.push(PtPass {
+            component: Component::Background,
+            scene: base,
+            contributions: Contributions::background(),
         });
     }
     out
@@ -91,7 +101,7 @@ pub fn pt_passes(scene: &Scene, effects: &Effects) -> Vec<PtPass> {
 /// that is not rendered is zero with zero error).
 #[derive(Debug, Clone)]
 pub struct PtComponents {
-    /// single + multiple + emission.
+    /// single + multiple + emission + background.
     pub total: Image,
     /// Order 1 from lights.
     pub single: Image,
@@ -99,6 +109,8 @@ pub struct PtComponents {
     pub multiple: Image,
     /// Order-0 emission.
     pub emission: Image,
+    /// Order 0 from the lights.
+    pub background: Image,
     /// The renders that ran, with their seconds.
     pub renders: Vec<(Component, Contributions, f64)>,
 }
@@ -190,6 +202,7 @@ pub fn components_from_parts(
         single: zero(w, h),
         multiple: zero(w, h),
         emission: zero(w, h),
+        background: zero(w, h),
         renders: Vec::new(),
     };
     for (pass, part) in passes.into_iter().zip(parts) {
@@ -200,6 +213,7 @@ pub fn components_from_parts(
             Component::Single => &mut out.single,
             Component::Multiple => &mut out.multiple,
             Component::Emission => &mut out.emission,
+            Component::Background => &mut out.background,
         };
         add(target, &im);
         add(&mut out.total, &im);
@@ -219,6 +233,7 @@ mod tests {
         let mut medium = Medium::homogeneous(grid, 2.0, 0.5).unwrap();
         medium.emission = vec![1.0; grid.len()];
         let scene = Scene {
+            interpolation: Default::default(),
             medium,
             phase: Phase::HenyeyGreenstein { g: 0.5 },
             lights: vec![

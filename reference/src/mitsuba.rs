@@ -11,7 +11,9 @@
 //! * **Medium**: a `cube` shape with a `null` BSDF spanning the grid's box, whose `interior`
 //!   is a `heterogeneous` medium with `scale = 1`. σt (and albedo, unless constant) are
 //!   `gridvolume`s read from `.vol` files with `use_grid_bbox = true` and
-//!   `filter_type = "nearest"`. With `use_grid_bbox` the volume's world-to-local transform
+//!   `filter_type` the scene's interpolation (`"nearest"` by default, or `"trilinear"`:
+//!   Dr.Jit's `eval_nonaccel` interpolates between texel centres (i + ½)/n and clamps at
+//!   the outer half texel, as our `Interpolation::Trilinear`). With `use_grid_bbox` the volume's world-to-local transform
 //!   maps the file's box onto the unit cube (`VolumeGrid::bbox_transform`), and the nearest
 //!   filter reads texel ⌊u·n⌋ on each axis (Dr.Jit `Texture::eval_nonaccel`), so texel i
 //!   covers [i, i+1)/n of the box: exactly our piecewise-constant voxel i. The texel order of
@@ -34,7 +36,10 @@
 //!   lands in exactly the pixel that contains it, so a pixel value is the unweighted mean
 //!   over the pixel's area); `independent` sampler; `volpath` integrator with
 //!   `max_depth = −1` (unlimited, Russian roulette from depth 5) unless a depth is given
-//!   (our "at most k scatterings" is Mitsuba's `max_depth = k + 1`).
+//!   (our "at most k scatterings" is Mitsuba's `max_depth = k + 1`), and
+//!   `hide_emitters = camera.hide_background` (volpath hides emitters hit at depth 0, i.e.
+//!   seen through the null-BSDF cube and unscattered medium: exactly our order 0 from
+//!   the lights).
 //!   Grey inputs make the three channels equal; channel 0 is used and the largest channel
 //!   difference is recorded.
 //!
@@ -399,7 +404,7 @@ pub fn export_scene(
             "type": "gridvolume",
             "filename": path.to_string_lossy(),
             "use_grid_bbox": true,
-            "filter_type": "nearest",
+            "filter_type": scene.interpolation.name(),
         })
     };
     let albedo = if m.albedo.iter().all(|&a| a == m.albedo[0]) {
@@ -429,6 +434,7 @@ pub fn export_scene(
         json!({
             "type": "volpath",
             "max_depth": max_depth.map_or(-1, i64::from),
+            "hide_emitters": camera.hide_background,
         }),
     );
     let film = json!({
@@ -713,6 +719,7 @@ mod tests {
 
     fn camera(projection: Projection) -> Camera {
         Camera {
+            hide_background: false,
             eye: [0.5, -1.0, 0.5],
             target: [0.5, 0.5, 0.5],
             up: [0.0, 0.0, 1.0],
@@ -745,6 +752,7 @@ mod tests {
         let mut medium = Medium::homogeneous(grid, 2.0, 0.5).unwrap();
         medium.sigma_t[5] = 7.0;
         let mut scene = Scene {
+            interpolation: Default::default(),
             medium,
             phase: Phase::HenyeyGreenstein { g: 0.3 },
             lights: vec![
@@ -785,6 +793,15 @@ mod tests {
         assert_eq!(d["sensor"]["film"]["width"], json!(8));
         assert_eq!(d["sensor"]["film"]["rfilter"]["type"], json!("box"));
         assert_eq!(d["integrator"]["max_depth"], json!(-1));
+        assert_eq!(d["integrator"]["hide_emitters"], json!(false));
+        scene.interpolation = solvers::scene::Interpolation::Trilinear;
+        if let Some(c) = scene.camera.as_mut() {
+            c.hide_background = true;
+        }
+        let d = export_scene(&scene, &dir, 16, None).unwrap();
+        let medium = &d["medium_bounds"]["interior"];
+        assert_eq!(medium["sigma_t"]["filter_type"], json!("trilinear"));
+        assert_eq!(d["integrator"]["hide_emitters"], json!(true));
         scene.medium.emission[3] = 1.0;
         let err = export_scene(&scene, &dir, 16, None).unwrap_err();
         assert!(err.to_string().contains("no volume emission"), "{err}");

@@ -154,6 +154,7 @@ fn hostile(seed: u64, n: [usize; 3]) -> Medium<f64> {
 fn beam_scene(albedo: f64) -> Scene {
     let grid = Grid::cube(16, 1.0).unwrap();
     Scene {
+        interpolation: Default::default(),
         medium: Medium::homogeneous(grid, 8.0, albedo).unwrap(),
         phase: Phase::Isotropic,
         lights: vec![Light::directional([0.0, 0.0, 1.0], 1.0).unwrap()],

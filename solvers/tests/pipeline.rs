@@ -17,6 +17,7 @@ const CPU: Backend<'static> = Backend::Cpu(Precision::F64);
 
 fn front_camera(res: usize, width: f64) -> Camera {
     Camera {
+        hide_background: false,
         eye: [0.5, -2.0, 0.5],
         target: [0.5, 0.5, 0.5],
         up: [0.0, 0.0, 1.0],
@@ -35,6 +36,7 @@ fn cloud(albedo: f64, with_light: bool, with_emission: bool) -> Scene {
         medium.emission.iter_mut().for_each(|j| *j = 0.0);
     }
     Scene {
+        interpolation: Default::default(),
         medium,
         phase: Phase::HenyeyGreenstein { g: 0.4 },
         lights: if with_light {
@@ -146,6 +148,7 @@ fn single_scattering_error(n: usize, step: f64, phase: Phase, shadows: Shadows) 
     let v: [f64; 3] = [0.0, 0.3, -1.0];
     let vlen = (0.09f64 + 1.0).sqrt();
     let scene = Scene {
+        interpolation: Default::default(),
         medium,
         phase,
         lights: vec![Light::directional(v, e).unwrap()],
@@ -235,6 +238,7 @@ fn emission_raymarch_is_exact_for_piecewise_constant_fields() {
     let mut medium = Medium::homogeneous(grid, 2.5, 0.0).unwrap();
     medium.emission = vec![3.0; grid.len()];
     let scene = Scene {
+        interpolation: Default::default(),
         medium,
         phase: Phase::Isotropic,
         lights: vec![],
@@ -324,12 +328,25 @@ fn unsupported_lights_and_bad_settings_are_typed_errors() {
         ),
         "{e}"
     );
-    // Excluding everything the environment light feeds makes the scene renderable.
+    // Excluding everything the environment light feeds makes the scene renderable; the
+    // environment itself stays visible (background, order 0: L_env·T) unless hidden.
     let cfg = PipelineConfig {
         effects: EffectSelection::exclude(&["single_scattering[1]", "multiple_scattering"])
             .unwrap(),
         ..quick_config()
     };
+    let r = pipeline::render(&s, &cfg, &CPU).unwrap();
+    assert_eq!(
+        r.plan.pass_names(),
+        vec![
+            "bake_directional[0]",
+            "raymarch_single",
+            "raymarch_background"
+        ]
+    );
+    if let Some(c) = s.camera.as_mut() {
+        c.hide_background = true;
+    }
     let r = pipeline::render(&s, &cfg, &CPU).unwrap();
     assert_eq!(
         r.plan.pass_names(),

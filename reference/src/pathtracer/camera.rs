@@ -20,7 +20,9 @@
 //!   phase-sampled rays that reach a sphere end there without scoring, so nothing is counted
 //!   twice; a sphere seen directly by the camera scores its radiance (times the path weight,
 //!   which carries the transmittance through delta tracking);
-//! * environment light: scored when the path escapes (including straight from the camera);
+//! * environment light: scored when the path escapes (including straight from the camera,
+//!   unless `camera.hide_background`, which also hides sphere lights seen directly: both
+//!   are Mitsuba's `hide_emitters`);
 //! * volume emission j: ∫ j/4π dt along every flight segment up to its end (a track-length
 //!   estimator, exact per segment for both reconstructions — see `Volume::integrate`).
 //!
@@ -74,13 +76,13 @@ pub struct Image {
     pub stderr: Vec<f64>,
 }
 
-/// Renders `scene` through `scene.camera` with the project's conventions (nearest voxel
-/// lookups, majorant blocks of 8³). Samples and seed come from `settings`
+/// Renders `scene` through `scene.camera` with the scene's voxel interpolation
+/// (`scene.interpolation`, nearest by default) and majorant blocks of 8³. Samples and seed come from `settings`
 /// (`scene.sampler` is not consulted). Fails with [`ReferenceError::NoCamera`] without a
 /// camera, [`ReferenceError::TooFewBatches`] below 16 batches, and
 /// [`ReferenceError::Scene`] for an invalid scene.
 pub fn render_image(scene: &Scene, settings: &RenderSettings) -> Result<Image, ReferenceError> {
-    render_image_with(scene, settings, &TraceOptions::default())
+    render_image_with(scene, settings, &TraceOptions::of(scene))
 }
 
 /// [`render_image`] with explicit tracing options (interpolation, majorant block size).
@@ -189,13 +191,13 @@ pub(crate) fn radiance(
         }
         match event {
             Event::Escape => {
-                if keep.light(depth) {
+                if keep.light(depth) && !(depth == 0 && world.hide_background) {
                     l += weight * world.environment;
                 }
                 return l;
             }
             Event::Sphere { index, outside, .. } => {
-                if depth == 0 && outside && keep.light(0) {
+                if depth == 0 && outside && keep.light(0) && !world.hide_background {
                     l += weight * world.spheres[index].radiance;
                 }
                 return l;
@@ -243,6 +245,7 @@ mod tests {
     #[test]
     fn camera_orientation_and_field_of_view() {
         let mut cam = Camera {
+            hide_background: false,
             eye: [0.0, 0.0, 5.0],
             target: [0.0, 0.0, 0.0],
             up: [0.0, 1.0, 0.0],

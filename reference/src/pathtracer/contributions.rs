@@ -82,6 +82,17 @@ impl Contributions {
         }
     }
 
+    /// Light from the lights seen directly through the medium (order 0: the environment
+    /// and sphere lights; the pipeline's `background`).
+    pub const fn background() -> Self {
+        Self {
+            min_order: 0,
+            max_order: Some(0),
+            lights: true,
+            emission: false,
+        }
+    }
+
     /// Emission scattered at least once.
     pub const fn scattered_emission() -> Self {
         Self {

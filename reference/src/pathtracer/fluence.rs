@@ -82,9 +82,9 @@ pub struct Fluence {
 
 const ROULETTE: f64 = 0.1;
 
-/// The track-length fluence of `scene` (nearest lookups, 8³ majorant blocks).
+/// The track-length fluence of `scene` (the scene's interpolation, 8³ majorant blocks).
 pub fn fluence(scene: &Scene, settings: &PathSettings) -> Result<Fluence, ReferenceError> {
-    fluence_with(scene, settings, &TraceOptions::default())
+    fluence_with(scene, settings, &TraceOptions::of(scene))
 }
 
 /// [`fluence`] with explicit tracing options. Volume emission as a source requires

@@ -61,6 +61,16 @@ pub struct TraceOptions {
     pub majorant_block: usize,
 }
 
+impl TraceOptions {
+    /// The options a scene asks for: its [`solvers::scene::Interpolation`], default blocks.
+    pub fn of(scene: &solvers::scene::Scene) -> Self {
+        Self {
+            interpolation: scene.interpolation,
+            ..Self::default()
+        }
+    }
+}
+
 impl Default for TraceOptions {
     fn default() -> Self {
         Self {

@@ -13,6 +13,7 @@ const FAMILY: f64 = 0.0027;
 
 fn scene(medium: Medium<f64>, phase: Phase, lights: Vec<Light>, camera: Option<Camera>) -> Scene {
     Scene {
+        interpolation: Default::default(),
         medium,
         phase,
         lights,
@@ -24,6 +25,7 @@ fn scene(medium: Medium<f64>, phase: Phase, lights: Vec<Light>, camera: Option<C
 /// Orthographic camera looking down −z at the unit cube, image `w` wide.
 fn top_camera(res: usize, width: f64) -> Camera {
     Camera {
+        hide_background: false,
         eye: [0.5, 0.5, 3.0],
         target: [0.5, 0.5, 0.0],
         up: [0.0, 1.0, 0.0],
@@ -124,6 +126,7 @@ fn results_are_bit_identical_for_one_and_two_threads() {
 #[test]
 fn vacuum_renders_exactly_black_or_exactly_the_environment() {
     let cam = Camera {
+        hide_background: false,
         eye: [0.5, -2.0, 0.5],
         target: [0.5, 0.5, 0.5],
         up: [0.0, 0.0, 1.0],
@@ -356,6 +359,7 @@ fn contributions_partition_the_radiance() {
 #[test]
 fn majorant_grid_matches_global_majorant() {
     let cam = Camera {
+        hide_background: false,
         eye: [0.5, -1.5, 1.3],
         target: [0.5, 0.5, 0.5],
         up: [0.0, 0.0, 1.0],

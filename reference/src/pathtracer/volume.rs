@@ -16,15 +16,9 @@ use super::math::{Vec3, at};
 use crate::ReferenceError;
 use solvers::{Grid, Medium};
 
-/// How voxel samples are reconstructed between voxel centres.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Interpolation {
-    /// Constant over each voxel (the project convention).
-    #[default]
-    Nearest,
-    /// Trilinear between voxel centres, clamped at the outer half voxel.
-    Trilinear,
-}
+/// How voxel samples are reconstructed between voxel centres (the scene's
+/// `interpolation`).
+pub use solvers::scene::Interpolation;
 
 /// A voxel medium in its bounding box, in `f64`.
 #[derive(Debug, Clone)]

@@ -87,6 +87,8 @@ pub(crate) struct World {
     /// Summed radiance of the environment lights.
     pub environment: f64,
     pub has_emission: bool,
+    /// The camera leaves out order-0 light from the lights (`Camera::hide_background`).
+    pub hide_background: bool,
 }
 
 impl World {
@@ -103,6 +105,7 @@ impl World {
             spheres: Vec::new(),
             environment: 0.0,
             has_emission,
+            hide_background: scene.camera.is_some_and(|c| c.hide_background),
         };
         for light in &scene.lights {
             match *light {
@@ -424,6 +427,7 @@ mod tests {
         let grid = Grid::cube(4, 1.0).unwrap();
         let n = grid.len();
         let scene = Scene {
+            interpolation: Default::default(),
             medium: Medium::new(grid, vec![0.0; n], vec![1.0; n], vec![0.0; n]).unwrap(),
             phase,
             lights,

@@ -9,7 +9,10 @@
 //!    the conservative restriction) and padded by [`PipelineConfig::pad`] vacuum voxels.
 //! 3. **Primary raymarch** ([`raymarch`], FLD Eq 3 with the source of FLD Eq 8): single
 //!    scattering with the scene's phase function, σs φ/4π with φ upsampled trilinearly,
-//!    and j/4π, as three separate images. CPU (rayon).
+//!    j/4π, and the environment seen through the medium (L_env·T, order 0, unless
+//!    `[camera] hide_background`), as separate images. CPU (rayon). With
+//!    `[medium] interpolation = "trilinear"` only the restriction follows the interpolant
+//!    ([`restrict::restrict_with`]); baking and the raymarch use the per-voxel values.
 //!
 //! [`planner`] turns the effect set (implied by the scene, restricted by its `[effects]`
 //! table and by [`PipelineConfig::effects`]) into the minimal list of passes; every render
@@ -22,7 +25,8 @@
 //! **Components and scattering orders** (what the path tracer must render to compare, see
 //! [`crate::scene::effects`]): `single` = order 1 from lights; `multiple` = orders ≥ 2 from
 //! lights plus orders ≥ 1 from emission (φ is sourced by q_ri + j, FLD Eq 12); `emission` =
-//! order-0 emission. `total` is their sum. Images are radiance in physical units
+//! order-0 emission; `background` = order 0 from the lights (the environment seen through
+//! the medium, L_env·T, unless `[camera] hide_background`). `total` is their sum. Images are radiance in physical units
 //! (power per area per steradian), row-major, top-left first.
 //!
 //! **Anisotropy.** Single scattering sees the phase function. The multiple-scattering pass
@@ -166,7 +170,7 @@ impl PipelineConfig {
 /// The images of one colour channel: radiance per pixel, row-major.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ChannelImages {
-    /// single + multiple + emission.
+    /// single + multiple + emission + background.
     pub total: Vec<f64>,
     /// Order 1 from lights.
     pub single: Vec<f64>,
@@ -174,6 +178,8 @@ pub struct ChannelImages {
     pub multiple: Vec<f64>,
     /// Order-0 emission.
     pub emission: Vec<f64>,
+    /// Order-0 light from the lights: the environment seen through the medium.
+    pub background: Vec<f64>,
 }
 
 /// A pass that ran.
@@ -352,6 +358,7 @@ pub fn render_channels(
             single: vec![0.0; npix],
             multiple: vec![0.0; npix],
             emission: vec![0.0; npix],
+            background: vec![0.0; npix],
         };
         for planned in &plan.passes {
             let t0 = Instant::now();
@@ -376,7 +383,13 @@ pub fn render_channels(
                             .zip(&medium.emission)
                             .for_each(|(q, j)| *q += j);
                     }
-                    let coarse = restrict::restrict(medium, &q, *downsample, config.pad)?;
+                    let coarse = restrict::restrict_with(
+                        medium,
+                        &q,
+                        *downsample,
+                        config.pad,
+                        scene.interpolation,
+                    )?;
                     let problem = Problem {
                         medium: &coarse,
                         lights: &scene.lights,
@@ -433,6 +446,17 @@ pub fn render_channels(
                         );
                     }
                 }
+                Pass::RaymarchBackground { radiance } => {
+                    img.background = raymarch::render_term(
+                        medium,
+                        &camera,
+                        Term::Background {
+                            radiance: *radiance,
+                        },
+                        config.step,
+                        config.pixel_samples,
+                    );
+                }
                 Pass::RaymarchEmission => {
                     img.emission = raymarch::render_term(
                         medium,
@@ -460,6 +484,9 @@ pub fn render_channels(
             }
             if runs("raymarch_emission") {
                 t += img.emission[p];
+            }
+            if runs("raymarch_background") {
+                t += img.background[p];
             }
             img.total[p] = t;
         }

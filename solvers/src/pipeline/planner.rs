@@ -7,6 +7,7 @@
 //! | `raymarch_single` | single scattering of at least one light is in the set (isotropic fast path unless anisotropy is) |
 //! | `raymarch_multiple` | multiple scattering is in the set |
 //! | `raymarch_emission` | emission is in the set |
+//! | `raymarch_background` | background is in the set (an environment light seen through the medium, `[camera] hide_background` not set) |
 //!
 //! Nothing else runs: no baking without lights whose light is needed, no diffusion solve when
 //! nothing scatters or multiple scattering is excluded, no emission pass without emission.
@@ -59,6 +60,11 @@ pub enum Pass {
     RaymarchMultiple,
     /// Primary raymarch of j/4π.
     RaymarchEmission,
+    /// The environment seen through the medium: L_env·T along each camera ray (order 0).
+    RaymarchBackground {
+        /// Summed radiance of the environment lights.
+        radiance: f64,
+    },
 }
 
 impl Pass {
@@ -71,6 +77,7 @@ impl Pass {
             Pass::RaymarchSingle { .. } => "raymarch_single".into(),
             Pass::RaymarchMultiple => "raymarch_multiple".into(),
             Pass::RaymarchEmission => "raymarch_emission".into(),
+            Pass::RaymarchBackground { .. } => "raymarch_background".into(),
         }
     }
 }
@@ -280,6 +287,40 @@ pub fn plan(
         skipped.push(Skipped {
             pass: "raymarch_emission".into(),
             why: why_not(Effect::Emission, "emission"),
+        });
+    }
+    if effects.contains(Effect::Background) {
+        if let Some((index, light)) = lights
+            .iter()
+            .enumerate()
+            .find(|(_, l)| matches!(l, Light::Sphere { .. }))
+        {
+            return Err(PipelineError::UnsupportedLight {
+                index,
+                kind: kind(light),
+            });
+        }
+        let radiance: f64 = lights
+            .iter()
+            .map(|l| match l {
+                Light::Environment { radiance } => *radiance,
+                _ => 0.0,
+            })
+            .sum();
+        passes.push(Planned {
+            pass: Pass::RaymarchBackground { radiance },
+            why: format!(
+                "the environment (radiance {radiance}) seen through the medium: L_env·T, order 0 (hide it with [camera] hide_background = true)"
+            ),
+        });
+    } else {
+        skipped.push(Skipped {
+            pass: "raymarch_background".into(),
+            why: if implied.contains(Effect::Background) {
+                "background is excluded by the effect selection".into()
+            } else {
+                "the camera sees no light directly (no environment or sphere light, or hide_background)".into()
+            },
         });
     }
     Ok(Plan {

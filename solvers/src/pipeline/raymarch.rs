@@ -1,7 +1,7 @@
 //! The primary raymarch (FLD Eq 3) with the source of FLD Eq 8, on CPU (rayon over pixels).
 //!
 //! Along each camera ray, L = ∫ T(s) Q(s) ds with 4πQ = q_ri + σs φ + j (FLD Eq 8), split
-//! into three independently integrated components (see `crate::scene::effects` for their
+//! into four independently integrated components (see `crate::scene::effects` for their
 //! meaning in scattering orders):
 //! * single scattering: σs(x) Σ_l p(cos θ_l) E_l(x) exp(−τ_l(x)) (τ_l from the deep
 //!   shadow map, see [`super::bake`]), with the scene's phase
@@ -12,8 +12,10 @@
 //!   (isotropic, FLD Section 3);
 //! * emission: j(x)/4π.
 //!
-//! There is no background term: environment and sphere lights are not supported by the
-//! pipeline (order-0 light from lights is never rendered).
+//! * background: L_env·T(camera ray), the environment seen through the medium (order 0
+//!   from the lights), with T = exp(−∫σt) exact by voxel traversal; a ray that misses the
+//!   box sees L_env. Sphere lights seen directly are not rendered (the planner refuses
+//!   them), and `[camera] hide_background = true` leaves the term out.
 //!
 //! **Integration.** σt, σs and j are piecewise constant per voxel (the project convention,
 //! the same nearest-voxel fields the path tracer samples). The ray is split exactly at voxel
@@ -46,7 +48,7 @@
 //! pixel centre.
 
 use super::bake::{BakedLight, Shadows};
-use super::geometry::{CameraRays, ray_box, traverse, trilinear};
+use super::geometry::{CameraRays, optical_depth, ray_box, traverse, trilinear};
 use crate::scene::{Camera, Phase};
 use crate::vec3::Vec3;
 use crate::{Grid, Medium};
@@ -79,6 +81,11 @@ pub enum Term<'a> {
     },
     /// j/4π.
     Emission,
+    /// The environment seen through the medium: `radiance`·T along the camera ray.
+    Background {
+        /// Summed radiance of the environment lights.
+        radiance: f64,
+    },
 }
 
 /// Renders one term through `camera`: radiance per pixel, row-major, top-left first.
@@ -225,6 +232,9 @@ pub fn march(
     step_len: f64,
 ) -> f64 {
     let g = &medium.grid;
+    if let Term::Background { radiance } = term {
+        return radiance * (-optical_depth(g, &medium.sigma_t, o, d, f64::INFINITY)).exp();
+    }
     let Some((t0, t1)) = ray_box(g, o, d, 0.0) else {
         return 0.0;
     };

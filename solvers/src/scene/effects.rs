@@ -24,9 +24,11 @@
 //!   replaces the phase function by the isotropic one everywhere (grid pipeline *and*
 //!   path tracer: [`Effects::apply_phase`]), so the comparison stays exact.
 //!
-//! Order-0 light from lights (an environment or a sphere light seen directly) is not an
-//! effect here: the grid pipeline does not render it, and the path-tracer mapping leaves it
-//! out too.
+//! * [`Effect::Background`]: order 0 from the lights — the environment (and sphere lights)
+//!   seen by the camera through the medium, L_env·T(camera ray). Implied by an environment
+//!   or sphere light unless `[camera] hide_background = true` (Mitsuba's `hide_emitters`);
+//!   the grid pipeline renders the environment's (`raymarch_background`, exact: T is a line
+//!   integral of the piecewise-constant σt), and refuses a sphere light seen directly.
 //!
 //! ## Scene-file syntax
 //! ```toml
@@ -34,12 +36,12 @@
 //! only = ["emission"]                    # keep only these light-transport effects
 //! exclude = ["multiple_scattering"]      # then drop these
 //! ```
-//! Names: `attenuation`, `single_scattering` (every light) or `single_scattering[i]`
+//! Names: `attenuation`, `background`, `single_scattering` (every light) or `single_scattering[i]`
 //! (light `i`, 0-based as in `[[light]]`), `multiple_scattering`, `emission`, `anisotropy`.
 //! Unknown names, light indices without such a light, and excluding `attenuation` are
 //! errors naming the field.
 
-use super::{Phase, Scene};
+use super::{Light, Phase, Scene};
 use serde::Serialize;
 use std::collections::BTreeSet;
 use std::fmt;
@@ -51,6 +53,10 @@ use thiserror::Error;
 pub enum Effect {
     /// Extinction along rays.
     Attenuation,
+    /// Order-0 light from the lights: the environment (and sphere lights) seen by the camera
+    /// through the medium, L·T along the camera ray. Implied by an environment or sphere
+    /// light and a camera without `hide_background`.
+    Background,
     /// Order-1 light from light number `light` (index into `Scene::lights`).
     SingleScattering {
         /// Index of the light.
@@ -69,6 +75,7 @@ impl fmt::Display for Effect {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Effect::Attenuation => write!(f, "attenuation"),
+            Effect::Background => write!(f, "background"),
             Effect::SingleScattering { light } => write!(f, "single_scattering[{light}]"),
             Effect::MultipleScattering => write!(f, "multiple_scattering"),
             Effect::Emission => write!(f, "emission"),
@@ -88,7 +95,7 @@ impl Serialize for Effect {
 pub enum EffectsError {
     /// Not an effect name.
     #[error(
-        "unknown effect `{0}`; known: attenuation, single_scattering, single_scattering[i], multiple_scattering, emission, anisotropy"
+        "unknown effect `{0}`; known: attenuation, background, single_scattering, single_scattering[i], multiple_scattering, emission, anisotropy"
     )]
     UnknownName(String),
     /// `single_scattering[i]` names a light the scene does not have.
@@ -111,6 +118,8 @@ pub enum EffectsError {
 pub enum EffectPattern {
     /// [`Effect::Attenuation`].
     Attenuation,
+    /// [`Effect::Background`].
+    Background,
     /// [`Effect::SingleScattering`] of light `Some(i)`, or of every light (`None`).
     SingleScattering(Option<usize>),
     /// [`Effect::MultipleScattering`].
@@ -126,6 +135,7 @@ impl EffectPattern {
     pub fn matches(&self, effect: &Effect) -> bool {
         match (self, effect) {
             (EffectPattern::Attenuation, Effect::Attenuation)
+            | (EffectPattern::Background, Effect::Background)
             | (EffectPattern::MultipleScattering, Effect::MultipleScattering)
             | (EffectPattern::Emission, Effect::Emission)
             | (EffectPattern::Anisotropy, Effect::Anisotropy)
@@ -144,6 +154,7 @@ impl FromStr for EffectPattern {
         let t = s.trim();
         Ok(match t {
             "attenuation" => EffectPattern::Attenuation,
+            "background" => EffectPattern::Background,
             "single_scattering" => EffectPattern::SingleScattering(None),
             "multiple_scattering" => EffectPattern::MultipleScattering,
             "emission" => EffectPattern::Emission,
@@ -166,6 +177,7 @@ impl fmt::Display for EffectPattern {
             EffectPattern::SingleScattering(None) => write!(f, "single_scattering"),
             EffectPattern::SingleScattering(Some(i)) => write!(f, "single_scattering[{i}]"),
             EffectPattern::Attenuation => write!(f, "attenuation"),
+            EffectPattern::Background => write!(f, "background"),
             EffectPattern::MultipleScattering => write!(f, "multiple_scattering"),
             EffectPattern::Emission => write!(f, "emission"),
             EffectPattern::Anisotropy => write!(f, "anisotropy"),
@@ -325,7 +337,9 @@ impl Scene {
     /// * single scattering of light i if σs = α·σt > 0 somewhere (for every light);
     /// * multiple scattering if σs > 0 somewhere and there is a source (a light, or j > 0);
     /// * emission if j > 0 somewhere;
-    /// * anisotropy if g ≠ 0 and σs > 0 somewhere.
+    /// * anisotropy if g ≠ 0 and σs > 0 somewhere;
+    /// * background if the camera sees the lights directly (an environment or sphere light,
+    ///   and a camera without `hide_background`).
     pub fn implied_effects(&self) -> Effects {
         let m = &self.medium;
         let mut set = BTreeSet::new();
@@ -348,6 +362,13 @@ impl Scene {
         if emits {
             set.insert(Effect::Emission);
         }
+        let seen = self
+            .lights
+            .iter()
+            .any(|l| matches!(l, Light::Environment { .. } | Light::Sphere { .. }));
+        if seen && self.camera.is_some_and(|c| !c.hide_background) {
+            set.insert(Effect::Background);
+        }
         Effects(set)
     }
 }
@@ -363,6 +384,7 @@ mod tests {
         let mut medium = Medium::homogeneous(grid, 2.0, albedo).unwrap();
         medium.emission = vec![j; grid.len()];
         Scene {
+            interpolation: Default::default(),
             medium,
             phase: if g == 0.0 {
                 Phase::Isotropic

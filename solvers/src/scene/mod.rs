@@ -222,6 +222,10 @@ pub struct Camera {
     pub projection: Projection,
     /// Image width and height in pixels.
     pub resolution: [usize; 2],
+    /// Leave out light seen directly (order 0 from the lights: the environment and sphere
+    /// lights seen through the medium), as Mitsuba's `hide_emitters`; scene files:
+    /// `[camera] hide_background = true`. Default false: the environment is visible.
+    pub hide_background: bool,
 }
 
 impl Camera {
@@ -283,6 +287,30 @@ pub struct Sampler {
     pub seed: u64,
 }
 
+/// How renderers that sample the medium between voxel centres reconstruct it (the path
+/// tracer, the Mitsuba export, the grid methods' restriction). Scene files:
+/// `[medium] interpolation = "nearest" | "trilinear"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Interpolation {
+    /// Constant over each voxel: the project convention (default), which every grid method
+    /// discretises directly.
+    #[default]
+    Nearest,
+    /// Trilinear between voxel centres, clamped to the outermost centres (the outer half
+    /// voxel is constant along the normal); Mitsuba's and pbrt's default grid filter.
+    Trilinear,
+}
+
+impl Interpolation {
+    /// The scene-file name (also Mitsuba's `filter_type`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Interpolation::Nearest => "nearest",
+            Interpolation::Trilinear => "trilinear",
+        }
+    }
+}
+
 /// A complete scene: medium, phase function, lights, optional camera and sampler.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
@@ -296,6 +324,8 @@ pub struct Scene {
     pub camera: Option<Camera>,
     /// Monte Carlo settings.
     pub sampler: Sampler,
+    /// Reconstruction of the voxel fields between centres (default nearest).
+    pub interpolation: Interpolation,
 }
 
 impl Scene {
@@ -331,6 +361,7 @@ mod tests {
         let err = Phase::HenyeyGreenstein { g: 1.0 }.validate().unwrap_err();
         assert!(err.to_string().contains("phase.g"), "{err}");
         let cam = Camera {
+            hide_background: false,
             eye: [0.0, 0.0, -1.0],
             target: [0.0; 3],
             up: [0.0, 0.0, 1.0],

@@ -144,10 +144,12 @@ mod tests {
     fn scene(sigma_t: f64, lights: Vec<Light>, eye: [f64; 3], target: [f64; 3]) -> Scene {
         let grid = Grid::cube(8, 1.0).unwrap();
         Scene {
+            interpolation: Default::default(),
             medium: Medium::homogeneous(grid, sigma_t, 0.9).unwrap(),
             phase: Phase::Isotropic,
             lights,
             camera: Some(Camera {
+                hide_background: false,
                 eye,
                 target,
                 up: [0.0, 0.0, 1.0],

@@ -370,6 +370,7 @@ impl Cx<'_> {
             }
         }
         let camera = Camera {
+            hide_background: c.hide_background.unwrap_or(false),
             eye: c.eye,
             target: c.target,
             up: c.up,

@@ -19,6 +19,8 @@
 //! # sigma_t_rgb = [1.0, 0.8, 0.6] # colour: per-channel scales of σt, albedo, emission make
 //! # albedo_rgb = [1.0, 1.0, 1.0]  # the scene RGB (three monochrome channels, see
 //! # emission_rgb = [1.0, 0.5, 0.2] # SceneFile::channels); generators may give RGB fields
+//! interpolation = "nearest"      # or "trilinear" between voxel centres (Mitsuba's and pbrt's
+//!                                # default); path tracer, Mitsuba export and restriction
 //!
 //! [phase]
 //! type = "hg"                    # "isotropic" (default) or "hg" with g in (−1, 1)
@@ -36,6 +38,8 @@
 //! projection = "perspective"     # with fov_y (degrees); or "orthographic" with width
 //! fov_y = 30.0
 //! resolution = [64, 64]          # width, height
+//! hide_background = false        # true: leave out lights seen directly (the environment
+//!                                # through the medium; Mitsuba's hide_emitters)
 //!
 //! [sampler]                      # default spp = 16, seed = 0
 //! spp = 64
@@ -76,7 +80,7 @@ mod write;
 mod tests;
 
 use super::effects::EffectSelection;
-use super::{Sampler, Scene};
+use super::{Interpolation, Sampler, Scene};
 use crate::Medium;
 use convert::Cx;
 use locate::Locator;
@@ -324,7 +328,18 @@ impl SceneFile {
         if outputs.contains(&OutputKind::Image) && camera.is_none() {
             return Err(loc.err("outputs.write", "`image` needs a [camera] table"));
         }
+        let interpolation = match doc.medium.interpolation.as_deref() {
+            None | Some("nearest") => Interpolation::Nearest,
+            Some("trilinear") => Interpolation::Trilinear,
+            Some(other) => {
+                return Err(loc.err(
+                    "medium.interpolation",
+                    format!("unknown interpolation `{other}`; known: nearest, trilinear"),
+                ));
+            }
+        };
         let scene = Scene {
+            interpolation,
             medium,
             phase,
             lights,

@@ -67,6 +67,8 @@ pub(super) struct MediumDoc {
     pub(super) vdb: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub(super) grid: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(super) interpolation: Option<String>,
 }
 
 #[derive(Debug, Deserialize, Serialize)]
@@ -111,6 +113,8 @@ pub(super) struct CameraDoc {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub(super) fov_y: Option<f64>,
     pub(super) resolution: [usize; 2],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(super) hide_background: Option<bool>,
 }
 
 #[derive(Debug, Deserialize, Serialize)]

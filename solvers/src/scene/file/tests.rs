@@ -1,5 +1,5 @@
 use super::*;
-use crate::scene::{Light, Phase};
+use crate::scene::{Interpolation, Light, Phase};
 
 const GOOD: &str = r#"
 format = 1
@@ -336,4 +336,40 @@ fn field_values_print_compactly() {
     let e = broken("radius = 0.1", "radius = -1e300");
     assert_field(&e, "light[1].radius", Some(24), "-1e300 is invalid");
     assert!(!e.to_string().contains("0000000000"), "{e}");
+}
+
+/// Issue 12: `[medium] interpolation` and `[camera] hide_background` parse (defaults:
+/// nearest, visible), survive a write/load round trip, and an unknown interpolation is an
+/// error naming the field.
+#[test]
+fn interpolation_and_hide_background_parse_round_trip_and_are_checked() {
+    let f = parse(GOOD).unwrap();
+    assert_eq!(f.scene.interpolation, Interpolation::Nearest);
+    assert!(!f.scene.camera.unwrap().hide_background);
+    let text = GOOD
+        .replacen(
+            "emission = 0.25",
+            "emission = 0.25\ninterpolation = \"trilinear\"",
+            1,
+        )
+        .replacen(
+            "resolution = [16, 8]",
+            "resolution = [16, 8]\nhide_background = true",
+            1,
+        );
+    let a = parse(&text).unwrap();
+    assert_eq!(a.scene.interpolation, Interpolation::Trilinear);
+    assert!(a.scene.camera.unwrap().hide_background);
+    let dir = std::env::temp_dir().join(format!("scatterbench-interp-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    a.write(&dir.join("a.toml")).unwrap();
+    let b = SceneFile::load(&dir.join("a.toml")).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(b.scene.interpolation, Interpolation::Trilinear);
+    assert_eq!(b.scene.camera, a.scene.camera);
+    let e = broken(
+        "emission = 0.25",
+        "emission = 0.25\ninterpolation = \"cubic\"",
+    );
+    assert_field(&e, "medium.interpolation", None, "unknown interpolation");
 }

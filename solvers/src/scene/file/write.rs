@@ -6,7 +6,7 @@ use super::schema::{
 use super::{FORMAT_VERSION, SceneFile, SceneFileError};
 use crate::scene::effects::EffectSelection;
 use crate::scene::vol::{VolError, VolGrid};
-use crate::scene::{Light, Phase, Projection};
+use crate::scene::{Interpolation, Light, Phase, Projection};
 use std::path::Path;
 
 impl SceneFile {
@@ -69,6 +69,8 @@ impl SceneFile {
                 file: Some(sigma_file),
                 albedo: Some(albedo),
                 emission: Some(emission),
+                interpolation: (s.interpolation != Interpolation::Nearest)
+                    .then(|| s.interpolation.name().to_string()),
                 ..MediumDoc::default()
             },
             phase: Some(match s.phase {
@@ -97,6 +99,7 @@ impl SceneFile {
                     width,
                     fov_y,
                     resolution: c.resolution,
+                    hide_background: c.hide_background.then_some(true),
                 }
             }),
             sampler: Some(SamplerDoc {
