@@ -335,7 +335,7 @@ fn run_pt(job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
 }
 
 /// A grid run's images as exact f64 arrays for a `--task` result: per channel, total,
-/// single, multiple and emission; the run's seconds with the first.
+/// single, multiple, emission and background; the run's seconds with the first.
 fn encode_images(images: &[ChannelImages], seconds: f64) -> Vec<PassSums> {
     let one = |v: &Vec<f64>, seconds: f64| PassSums {
         sums: BatchSums {
@@ -348,35 +348,37 @@ fn encode_images(images: &[ChannelImages], seconds: f64) -> Vec<PassSums> {
         },
         seconds,
     };
-    let mut out = Vec::with_capacity(4 * images.len());
+    let mut out = Vec::with_capacity(IMAGES_PER_CHANNEL * images.len());
     for (c, im) in images.iter().enumerate() {
         let s = if c == 0 { seconds } else { 0.0 };
         out.push(one(&im.total, s));
-        out.push(one(&im.single, 0.0));
-        out.push(one(&im.multiple, 0.0));
-        out.push(one(&im.emission, 0.0));
+        for v in [&im.single, &im.multiple, &im.emission, &im.background] {
+            out.push(one(v, 0.0));
+        }
     }
     out
 }
 
+/// Arrays per channel in [`encode_images`].
+const IMAGES_PER_CHANNEL: usize = 5;
+
 /// The inverse of [`encode_images`].
 fn decode_images(parts: &[PassSums], detail: &str) -> Result<Run> {
-    if parts.len() % 4 != 0 {
+    if parts.len() % IMAGES_PER_CHANNEL != 0 {
         bail!(
-            "a grid task result holds {} arrays, not 4 per channel",
+            "a grid task result holds {} arrays, not {IMAGES_PER_CHANNEL} per channel",
             parts.len()
         );
     }
     Ok(Run {
         images: parts
-            .chunks(4)
+            .chunks(IMAGES_PER_CHANNEL)
             .map(|p| ChannelImages {
                 total: p[0].sums.sums.clone(),
                 single: p[1].sums.sums.clone(),
                 multiple: p[2].sums.sums.clone(),
                 emission: p[3].sums.sums.clone(),
-                // The atlas datasets have no environment or sphere light: no background.
-                background: vec![0.0; p[0].sums.sums.len()],
+                background: p[4].sums.sums.clone(),
             })
             .collect(),
         seconds: parts.first().map_or(0.0, |p| p.seconds),
