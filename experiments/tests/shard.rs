@@ -181,6 +181,17 @@ fn pt_render_merges_bit_identically() {
 }
 
 #[test]
+fn i3rc_step_cloud_merges_bit_identically() {
+    sharded_equals_whole(
+        "i3rc",
+        env!("CARGO_BIN_EXE_i3rc_step_cloud"),
+        &["--quick"],
+        4,
+        &[Same::Csv("columns.csv", &[]), Same::Csv("domain.csv", &[])],
+    );
+}
+
+#[test]
 fn render_pt_merges_bit_identically() {
     let scene = workspace().join("scenes/emissive_sphere.toml");
     let scene = scene.to_string_lossy().into_owned();

@@ -60,10 +60,11 @@
 //! path i draws from `Rng::new(seed, i)` only, so results are bit-identical for any number
 //! of threads.
 
-use super::estimators::{Estimate, check_batches, run_paths};
+use super::estimators::{Estimate, check_batches, run_batches};
 use super::fluence::PathSettings;
 use super::phase::sample_dir;
 use super::rng::Rng;
+use super::shard::{BatchSums, Shard};
 use crate::ReferenceError;
 use solvers::Medium;
 use solvers::scene::Phase;
@@ -268,6 +269,31 @@ impl PeriodicSlab {
         settings: &PathSettings,
         group: &[usize],
     ) -> Result<PeriodicTally, ReferenceError> {
+        let sums = self.simulate_grouped_part(beam, settings, group, Shard::WHOLE)?;
+        periodic_tally(&sums)
+    }
+
+    /// [`PeriodicSlab::simulate`] for `shard`'s batches: their per-batch sums, for
+    /// [`periodic_tally`] once joined.
+    pub fn simulate_part(
+        &self,
+        beam: &Beam,
+        settings: &PathSettings,
+        shard: Shard,
+    ) -> Result<BatchSums, ReferenceError> {
+        let groups: Vec<usize> = (0..self.n[0]).collect();
+        self.simulate_grouped_part(beam, settings, &groups, shard)
+    }
+
+    /// [`PeriodicSlab::simulate_grouped`] for `shard`'s batches (see
+    /// [`PeriodicSlab::simulate_part`]).
+    pub fn simulate_grouped_part(
+        &self,
+        beam: &Beam,
+        settings: &PathSettings,
+        group: &[usize],
+        shard: Shard,
+    ) -> Result<BatchSums, ReferenceError> {
         beam.validate()?;
         check_batches(settings.batches, settings.paths, "paths")?;
         let [nx, ny, nz] = self.n;
@@ -298,7 +324,7 @@ impl PeriodicSlab {
         let top = nz as f64 * self.dl;
         let bins = DOMAIN + PER_GROUP * ngroups;
         let full_rounds = settings.paths - settings.paths % nx as u64;
-        let est = run_paths(settings.paths, settings.batches, bins, |i, t| {
+        run_batches(settings.paths, settings.batches, bins, shard, |i, t| {
             let mut rng = Rng::new(settings.seed, i);
             // Entry x stratified by column over complete rounds of nx paths (see the
             // module docs); the last incomplete round enters uniformly.
@@ -349,21 +375,37 @@ impl PeriodicSlab {
                     }
                 }
             }
-        })?;
-        let fluxes = |s: &[Estimate]| ColumnFluxes {
-            reflectance: s[0],
-            transmittance: s[1],
-            transmittance_direct: s[2],
-            transmittance_diffuse: s[3],
-            absorptance: s[4],
-        };
-        Ok(PeriodicTally {
-            columns: est[DOMAIN..].chunks(PER_GROUP).map(fluxes).collect(),
-            domain: fluxes(&est[..5]),
-            balance: est[5],
         })
     }
+}
 
+/// The tally of a whole run from its joined per-batch sums
+/// ([`PeriodicSlab::simulate_part`] or [`PeriodicSlab::simulate_grouped_part`]).
+pub fn periodic_tally(sums: &BatchSums) -> Result<PeriodicTally, ReferenceError> {
+    if sums.bins < DOMAIN || (sums.bins - DOMAIN) % PER_GROUP != 0 {
+        return Err(ReferenceError::ShardMismatch {
+            what: format!(
+                "a periodic-slab tally has {DOMAIN} + {PER_GROUP}·groups bins, these sums {}",
+                sums.bins
+            ),
+        });
+    }
+    let est = sums.estimates()?;
+    let fluxes = |s: &[Estimate]| ColumnFluxes {
+        reflectance: s[0],
+        transmittance: s[1],
+        transmittance_direct: s[2],
+        transmittance_diffuse: s[3],
+        absorptance: s[4],
+    };
+    Ok(PeriodicTally {
+        columns: est[DOMAIN..].chunks(PER_GROUP).map(fluxes).collect(),
+        domain: fluxes(&est[..5]),
+        balance: est[5],
+    })
+}
+
+impl PeriodicSlab {
     /// One free flight from `p` in tracking cell `cell` along unit `d`, spending the optical
     /// depth `tau` cell by cell; `p` and `cell` are left at the collision or exit point
     /// (wrapped into the period).
