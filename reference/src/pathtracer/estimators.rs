@@ -143,6 +143,7 @@ impl BatchMeans {
 /// Runs paths `0..paths` in `batches` batches: `path(i, tally)` adds path `i`'s scores to the
 /// `bins` entries of `tally`. Within a batch, paths are summed in chunks processed in
 /// parallel and combined in chunk order; the chunk size depends only on the batch size.
+#[cfg(test)]
 pub(crate) fn run_paths<F>(
     paths: u64,
     batches: u32,
