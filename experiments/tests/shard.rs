@@ -11,6 +11,10 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
+use common::sharding::{csv_without, small_atlas};
+use common::spawn::workspace;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -19,13 +23,6 @@ fn scratch(tag: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
 }
 
 /// Runs `bin args` in `cwd`; returns (success, stderr).
@@ -50,21 +47,6 @@ fn ok(bin: &str, args: &[String], cwd: &Path) {
 
 fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
-}
-
-/// The CSV at `path` without the columns `skip`: header and rows as strings.
-fn csv_without(path: &Path, skip: &[&str]) -> Vec<Vec<String>> {
-    let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let header: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
-    let keep: Vec<usize> = (0..header.len())
-        .filter(|&i| !skip.contains(&header[i].as_str()))
-        .collect();
-    let mut out = vec![keep.iter().map(|&i| header[i].clone()).collect()];
-    for row in r.records() {
-        let row = row.unwrap();
-        out.push(keep.iter().map(|&i| row[i].to_string()).collect());
-    }
-    out
 }
 
 /// A file to compare: a CSV without its wall-clock columns, or any file byte for byte.
@@ -213,22 +195,12 @@ fn render_pt_merges_bit_identically() {
 
 #[test]
 fn accuracy_atlas_merges_bit_identically() {
-    let scene = workspace().join("scenes/emissive_cloud.toml");
-    let scene = scene.to_string_lossy().into_owned();
+    let atlas = small_atlas();
+    let flags: Vec<&str> = atlas.iter().map(String::as_str).collect();
     sharded_equals_whole(
         "atlas",
         env!("CARGO_BIN_EXE_accuracy_cost"),
-        &[
-            "--quick",
-            "--scenes",
-            &scene,
-            "--methods",
-            "pt,cda",
-            "--reference-spp",
-            "64",
-            "--resolution",
-            "12,12",
-        ],
+        &flags,
         2,
         &[
             Same::Csv("points.csv", &["seconds"]),
@@ -398,20 +370,8 @@ fn shard_flags_are_checked() {
 fn atlas_tasks_merge_like_a_single_run() {
     let dir = scratch("tasks");
     let bin = env!("CARGO_BIN_EXE_accuracy_cost");
-    let scene = workspace().join("scenes/emissive_cloud.toml");
-    let scene = scene.to_string_lossy().into_owned();
-    let base = strings(&[
-        "--quick",
-        "--scenes",
-        &scene,
-        "--methods",
-        "pt,cda",
-        "--reference-spp",
-        "64",
-        "--resolution",
-        "12,12",
-        "--no-progress",
-    ]);
+    let mut base = small_atlas();
+    base.push("--no-progress".into());
     let o = Command::new(bin)
         .args(&base)
         .arg("--list-tasks")

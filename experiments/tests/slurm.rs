@@ -10,16 +10,13 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
-}
+use common::sharding::{csv_without, small_atlas};
+use common::spawn::workspace;
+use std::io::Write as _;
+use std::path::PathBuf;
+use std::process::Command;
 
 fn have_slurm() -> bool {
     let required = std::env::var("SCATTERBENCH_REQUIRE_SLURM").is_ok_and(|v| v == "1");
@@ -59,20 +56,6 @@ fn log(line: &str) {
     {
         let _ = writeln!(f, "{line}");
     }
-}
-
-fn csv_without(path: &Path, skip: &[&str]) -> Vec<Vec<String>> {
-    let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let header: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
-    let keep: Vec<usize> = (0..header.len())
-        .filter(|&i| !skip.contains(&header[i].as_str()))
-        .collect();
-    let mut out = vec![keep.iter().map(|&i| header[i].clone()).collect()];
-    for row in r.records() {
-        let row = row.unwrap();
-        out.push(keep.iter().map(|&i| row[i].to_string()).collect());
-    }
-    out
 }
 
 /// Submits `producer flags` as 4 shards (or, with `tasks`, one array task per line of its
@@ -176,19 +159,8 @@ fn sharded_runs_through_slurm_merge_bit_identically() {
         &["--quick", "--paths", "64000", "--tau", "1,8"],
         &[("slab.csv", &["seconds"])],
     );
-    let scene = workspace().join("scenes/emissive_cloud.toml");
-    let scene = scene.to_string_lossy().into_owned();
-    let atlas = [
-        "--quick",
-        "--scenes",
-        &scene,
-        "--methods",
-        "pt,cda",
-        "--reference-spp",
-        "64",
-        "--resolution",
-        "12,12",
-    ];
+    let atlas = small_atlas();
+    let atlas: Vec<&str> = atlas.iter().map(String::as_str).collect();
     let files: &[(&str, &[&str])] = &[
         ("points.csv", &["seconds"]),
         ("references.csv", &["seconds"]),

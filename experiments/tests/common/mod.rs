@@ -2,6 +2,7 @@
 //! check of a run's promises (every promised file, every promised column in order).
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
+pub mod sharding;
 pub mod spawn;
 
 use experiments::experiment::ExperimentEntry;
