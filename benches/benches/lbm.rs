@@ -23,7 +23,6 @@ use solvers::gpu::{GpuContext, bandwidth};
 use solvers::lbm::{CpuLbm, GpuLbm, Injection, LbmConfig, Resolve, SigmaMapping};
 use solvers::scene::generators::{Generator, NoiseCloud};
 use solvers::{Medium, Real};
-use std::path::PathBuf;
 use std::time::Duration;
 
 const DEFAULT_SIZES: [usize; 2] = [64, 128];
@@ -262,18 +261,8 @@ fn main() {
     println!(
         "effective bytes: 19 values read + 19 written per site per step; triad counts 3 and copy 2 arrays; GB = 1e9 bytes"
     );
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .map(PathBuf::from)
-        .unwrap_or_default();
-    let path = root.join(CSV_PATH);
-    let written = path
-        .parent()
-        .map(std::fs::create_dir_all)
-        .unwrap_or(Ok(()))
-        .and_then(|_| std::fs::write(&path, text));
-    match written {
-        Ok(()) => println!("wrote {}", path.display()),
+    match benches::cli::write_result(CSV_PATH, &text) {
+        Ok(path) => println!("wrote {}", path.display()),
         Err(e) => eprintln!("error: cannot write {CSV_PATH}: {e}"),
     }
 }

@@ -24,7 +24,6 @@ use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput};
 use solvers::gpu::{GpuContext, bandwidth};
 use solvers::rde::{Coefficients, CpuRde, GpuRde, PointSource, RdeConfig};
 use solvers::{Grid, Real};
-use std::path::PathBuf;
 use std::time::Duration;
 
 const DEFAULT_SIZES: [usize; 2] = [128, 256];
@@ -272,18 +271,8 @@ fn main() {
     println!(
         "effective bytes: phi, beta, a, s read and phi written once per voxel per step (20 B f32, 40 B f64); triad counts 3 and copy 2 arrays; GB = 1e9 bytes; targets (issue 18): cpu f32 128^3 <= 3 ms, 256^3 <= 25 ms, >= 0.4 of triad"
     );
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .map(PathBuf::from)
-        .unwrap_or_default();
-    let path = root.join(CSV_PATH);
-    let written = path
-        .parent()
-        .map(std::fs::create_dir_all)
-        .unwrap_or(Ok(()))
-        .and_then(|_| std::fs::write(&path, text));
-    match written {
-        Ok(()) => println!("wrote {}", path.display()),
+    match benches::cli::write_result(CSV_PATH, &text) {
+        Ok(path) => println!("wrote {}", path.display()),
         Err(e) => eprintln!("error: cannot write {CSV_PATH}: {e}"),
     }
 }
