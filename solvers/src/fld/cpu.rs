@@ -334,23 +334,22 @@ impl<T: Real> CpuFld<T> {
     /// (for progress bars and residual plots).
     pub fn solve_observed(mut self, mut observer: impl FnMut(usize, f64)) -> FldSolution<T> {
         let t0 = Instant::now();
-        let mut status = Stop::Cap;
-        if self.trivial {
-            status = Stop::Converged;
+        let status = if self.trivial {
+            Stop::Converged
         } else {
-            while self.iterations < self.config.max_iterations {
-                let r = self.iterate();
-                observer(self.iterations, r);
-                if !r.is_finite() {
-                    status = Stop::NonFinite;
-                    break;
-                }
-                if r < self.tolerance {
-                    status = Stop::Converged;
-                    break;
-                }
-            }
-        }
+            let (max, tol) = (self.config.max_iterations, self.tolerance);
+            super::iterate(
+                self.iterations,
+                max,
+                tol,
+                None,
+                || {
+                    let r = self.iterate();
+                    (self.iterations, r)
+                },
+                &mut observer,
+            )
+        };
         let seconds = t0.elapsed().as_secs_f64();
         super::solution(
             self.grid,

@@ -319,6 +319,45 @@ impl<T> Solution<T, FldTrace> {
     }
 }
 
+/// The stopping rule every FLD solver loop shares: `step()` does one iteration (SOR) or
+/// cycle (multigrid) and returns (iterations so far, R̄/j̄), starting from `start` done;
+/// `observer` sees each. Stops at `max` iterations ([`Stop::Cap`]), a non-finite residual,
+/// R̄/j̄ < `tolerance`, or, with
+/// `stall = Some(k)`, after k steps in a row without cutting the best residual by 10 %.
+pub(crate) fn iterate(
+    start: usize,
+    max: usize,
+    tolerance: f64,
+    stall: Option<usize>,
+    mut step: impl FnMut() -> (usize, f64),
+    mut observer: impl FnMut(usize, f64),
+) -> Stop {
+    let (mut best, mut since) = (f64::INFINITY, 0usize);
+    let mut done = start;
+    while done < max {
+        let (k, r) = step();
+        done = k;
+        observer(k, r);
+        if !r.is_finite() {
+            return Stop::NonFinite;
+        }
+        if r < tolerance {
+            return Stop::Converged;
+        }
+        if let Some(limit) = stall {
+            if r < 0.9 * best {
+                (best, since) = (r, 0);
+            } else {
+                since += 1;
+                if since >= limit {
+                    return Stop::Stalled;
+                }
+            }
+        }
+    }
+    Stop::Cap
+}
+
 /// Assembles a solution (CPU and GPU kernels): `last_change` is the final residual.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn solution<T>(

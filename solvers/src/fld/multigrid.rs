@@ -348,33 +348,26 @@ impl<T: Real> CpuMultigrid<T> {
     /// non-finite residual; `observer(cycle, residual)` after every cycle.
     pub fn solve_observed(mut self, mut observer: impl FnMut(usize, f64)) -> FldSolution<T> {
         let t0 = Instant::now();
-        let mut status = Stop::Cap;
-        let (mut best, mut since) = (f64::INFINITY, 0usize);
-        if self.trivial {
-            status = Stop::Converged;
+        let status = if self.trivial {
+            Stop::Converged
         } else {
-            while self.cycles < self.config.max_iterations {
-                let r = self.cycle();
-                observer(self.cycles, r);
-                if !r.is_finite() {
-                    status = Stop::NonFinite;
-                    break;
-                }
-                if r < self.tolerance {
-                    status = Stop::Converged;
-                    break;
-                }
-                if r < 0.9 * best {
-                    (best, since) = (r, 0);
-                } else {
-                    since += 1;
-                    if since >= self.mg.stall_cycles {
-                        status = Stop::Stalled;
-                        break;
-                    }
-                }
-            }
-        }
+            let (max, tol, stall) = (
+                self.config.max_iterations,
+                self.tolerance,
+                self.mg.stall_cycles,
+            );
+            super::iterate(
+                self.cycles,
+                max,
+                tol,
+                Some(stall),
+                || {
+                    let r = self.cycle();
+                    (self.cycles, r)
+                },
+                &mut observer,
+            )
+        };
         let seconds = t0.elapsed().as_secs_f64();
         let fine = &self.levels[0];
         let grid = fine.grid;
