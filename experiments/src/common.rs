@@ -453,7 +453,7 @@ impl Ctx {
         }
         self.mc = crate::shard::Mc::Shard {
             shard: reference::pathtracer::Shard::WHOLE,
-            argv: crate::shard::strip_task(&crate::shard::strip_flags(&argv)),
+            argv: crate::shard::strip_flags(&argv),
             tallies: Vec::new(),
             task: Some(crate::shard::TaskSel {
                 index,

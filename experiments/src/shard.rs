@@ -142,16 +142,17 @@ pub struct Header {
     pub tasks: Option<u32>,
 }
 
-/// `argv` without the flags that do not change results: `--out X`, `--shard X` (and their
-/// `=` forms), `--no-progress` and `--force`.
+/// `argv` without the flags that do not change results or name the part: `--out X`,
+/// `--shard X`, `--task K` (and their `=` forms), `--no-progress` and `--force`.
 pub fn strip_flags(argv: &[String]) -> Vec<String> {
     let mut out = Vec::new();
     let mut it = argv.iter();
     while let Some(a) = it.next() {
-        if a == "--out" || a == "--shard" {
+        if a == "--out" || a == "--shard" || a == "--task" {
             it.next();
         } else if !(a.starts_with("--out=")
             || a.starts_with("--shard=")
+            || a.starts_with("--task=")
             || a == "--no-progress"
             || a == "--force")
         {
@@ -380,23 +381,52 @@ pub struct Joined {
     pub from_tasks: bool,
 }
 
-/// Checks that `files` are all N shards of one run (same producer, flags, revision, input
-/// files and layout, each index 0..N once) and joins their tallies.
-pub fn join(files: Vec<ShardFile>) -> Result<Joined> {
+/// What a set of shard files splits: a run's batches (`--shard`) or a sweep's tasks (`--task`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Split {
+    Shards,
+    Tasks,
+}
+
+impl Split {
+    /// (index, count) of a file under this split.
+    fn of(self, h: &Header) -> (u32, u32) {
+        match self {
+            Split::Shards => (h.shard, h.shards),
+            Split::Tasks => (h.task.unwrap_or(u32::MAX), h.tasks.unwrap_or(0)),
+        }
+    }
+
+    /// How an index is named in messages.
+    fn name(self, i: u32, count: u32) -> String {
+        match self {
+            Split::Shards => format!("shard {i}/{count}"),
+            Split::Tasks => format!("task {i} of {count}"),
+        }
+    }
+}
+
+/// Checks that `files` are all parts of one run under `split`: same producer, flags,
+/// revision and input files (shards: also the same tallies), one count, each index 0..count
+/// exactly once. Returns the first header.
+fn check_one_run(files: &[ShardFile], split: Split) -> Result<Header> {
     let Some(first) = files.first() else {
         bail!("no shards given");
     };
-    if first.header.tasks.is_some() {
-        return join_tasks(files);
-    }
-    let h0 = first.header.clone();
-    let p0 = first.path.clone();
+    let (h0, p0) = (&first.header, &first.path);
+    let whole = match split {
+        Split::Shards => "shards of one run",
+        Split::Tasks => "tasks of one sweep",
+    };
+    let labels =
+        |h: &Header| -> Vec<String> { h.tallies.iter().map(|t| t.label.clone()).collect() };
+    let (_, count) = split.of(h0);
     let mut seen: BTreeMap<u32, PathBuf> = BTreeMap::new();
-    for f in &files {
+    for f in files {
         let h = &f.header;
         let differ = |what: &str, a: &dyn std::fmt::Debug, b: &dyn std::fmt::Debug| {
             anyhow::anyhow!(
-                "{} and {} are not shards of one run: their {what} differ ({a:?} vs {b:?})",
+                "{} and {} are not {whole}: their {what} differ ({a:?} vs {b:?})",
                 p0.display(),
                 f.path.display()
             )
@@ -413,42 +443,58 @@ pub fn join(files: Vec<ShardFile>) -> Result<Joined> {
         if h.inputs != h0.inputs {
             return Err(differ("input files", &h0.inputs, &h.inputs));
         }
-        if h.shards != h0.shards {
-            return Err(differ("shard counts", &h0.shards, &h.shards));
+        if (h.shards, h.tasks) != (h0.shards, h0.tasks) {
+            return Err(differ(
+                "shard or task counts",
+                &(h0.shards, h0.tasks),
+                &(h.shards, h.tasks),
+            ));
         }
-        if h.tasks.is_some() {
-            return Err(differ("kinds (shards vs tasks)", &h0.tasks, &h.tasks));
+        if split == Split::Shards && labels(h) != labels(h0) {
+            return Err(differ("tallies", &labels(h0), &labels(h)));
         }
-        let labels =
-            |h: &Header| -> Vec<String> { h.tallies.iter().map(|t| t.label.clone()).collect() };
-        if labels(h) != labels(&h0) {
-            return Err(differ("tallies", &labels(&h0), &labels(h)));
-        }
-        if let Some(other) = seen.insert(h.shard, f.path.clone()) {
+        let (i, _) = split.of(h);
+        if let Some(other) = seen.insert(i, f.path.clone()) {
             bail!(
-                "shard {}/{} is given twice: {} and {}",
-                h.shard,
-                h.shards,
+                "{} is given twice: {} and {}",
+                split.name(i, count),
                 other.display(),
                 f.path.display()
             );
         }
     }
-    let missing: Vec<String> = (0..h0.shards)
+    let missing: Vec<String> = (0..count)
         .filter(|i| !seen.contains_key(i))
-        .map(|i| format!("{i}/{}", h0.shards))
+        .map(|i| match split {
+            Split::Shards => format!("{i}/{count}"),
+            Split::Tasks => i.to_string(),
+        })
         .collect();
     if !missing.is_empty() {
+        let (what, flag, of) = match split {
+            Split::Shards => ("shard", "--shard", format!("{count}-shard run")),
+            Split::Tasks => ("task", "--task", format!("{count}-task sweep")),
+        };
+        let many = missing.len() > 1;
         bail!(
-            "shard{} {} of this {}-shard run {} missing: rerun {} with the same flags and \
-             `--shard`, then merge again",
-            if missing.len() > 1 { "s" } else { "" },
+            "{what}{} {} of this {of} {} missing: rerun {} with the same flags and `{flag}`, \
+             then merge again",
+            if many { "s" } else { "" },
             missing.join(", "),
-            h0.shards,
-            if missing.len() > 1 { "are" } else { "is" },
-            if missing.len() > 1 { "them" } else { "it" },
+            if many { "are" } else { "is" },
+            if many { "them" } else { "it" },
         );
     }
+    Ok(h0.clone())
+}
+
+/// Checks that `files` are all N shards of one run (same producer, flags, revision, input
+/// files and layout, each index 0..N once) and joins their tallies.
+pub fn join(files: Vec<ShardFile>) -> Result<Joined> {
+    if files.first().is_some_and(|f| f.header.tasks.is_some()) {
+        return join_tasks(files);
+    }
+    let h0 = check_one_run(&files, Split::Shards)?;
     let provenance = serde_json::json!({
         "shards": h0.shards,
         "files": files.iter().map(|f| serde_json::json!({
@@ -494,57 +540,8 @@ pub fn join(files: Vec<ShardFile>) -> Result<Joined> {
 /// Checks that `files` are all T task results of one sweep (same producer, flags, revision,
 /// inputs; each task 0..T once) and puts their tallies in task order.
 fn join_tasks(mut files: Vec<ShardFile>) -> Result<Joined> {
-    let h0 = files[0].header.clone();
-    let p0 = files[0].path.clone();
+    let h0 = check_one_run(&files, Split::Tasks)?;
     let count = h0.tasks.unwrap_or(0);
-    let mut seen: BTreeMap<u32, PathBuf> = BTreeMap::new();
-    for f in &files {
-        let h = &f.header;
-        let differ = |what: &str, a: &dyn std::fmt::Debug, b: &dyn std::fmt::Debug| {
-            anyhow::anyhow!(
-                "{} and {} are not tasks of one sweep: their {what} differ ({a:?} vs {b:?})",
-                p0.display(),
-                f.path.display()
-            )
-        };
-        if h.producer != h0.producer {
-            return Err(differ("producers", &h0.producer, &h.producer));
-        }
-        if h.argv != h0.argv {
-            return Err(differ("flags", &h0.argv, &h.argv));
-        }
-        if h.git_revision != h0.git_revision {
-            return Err(differ("revisions", &h0.git_revision, &h.git_revision));
-        }
-        if h.inputs != h0.inputs {
-            return Err(differ("input files", &h0.inputs, &h.inputs));
-        }
-        if h.tasks != h0.tasks {
-            return Err(differ("task counts (or kinds)", &h0.tasks, &h.tasks));
-        }
-        let k = h.task.unwrap_or(u32::MAX);
-        if let Some(other) = seen.insert(k, f.path.clone()) {
-            bail!(
-                "task {k} of {count} is given twice: {} and {}",
-                other.display(),
-                f.path.display()
-            );
-        }
-    }
-    let missing: Vec<String> = (0..count)
-        .filter(|i| !seen.contains_key(i))
-        .map(|i| i.to_string())
-        .collect();
-    if !missing.is_empty() {
-        bail!(
-            "task{} {} of this {count}-task sweep {} missing: rerun {} with the same flags and \
-             `--task`, then merge again",
-            if missing.len() > 1 { "s" } else { "" },
-            missing.join(", "),
-            if missing.len() > 1 { "are" } else { "is" },
-            if missing.len() > 1 { "them" } else { "it" },
-        );
-    }
     files.sort_by_key(|f| f.header.task);
     let provenance = serde_json::json!({
         "tasks": count,
@@ -626,18 +623,4 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
             crate::experiment::producers().join(", ")
         ),
     }
-}
-
-/// `argv` without `--task K` / `--task=K` (the task's index goes in the header).
-pub fn strip_task(argv: &[String]) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut it = argv.iter();
-    while let Some(a) = it.next() {
-        if a == "--task" {
-            it.next();
-        } else if !a.starts_with("--task=") {
-            out.push(a.clone());
-        }
-    }
-    out
 }
