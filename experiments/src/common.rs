@@ -520,18 +520,7 @@ impl Ctx {
                 Ok(None)
             }
             Mc::Merge { tallies, .. } => {
-                let Some(t) = tallies.pop_front() else {
-                    anyhow::bail!(
-                        "the shards hold fewer tallies than this run takes (next: `{label}`)"
-                    );
-                };
-                if t.label != label {
-                    anyhow::bail!(
-                        "the shards' next tally is `{}`, this run's is `{label}`: not shards \
-                         of this run",
-                        t.label
-                    );
-                }
+                let t = crate::shard::next_stored(tallies, label)?;
                 finish(&t.parts).map(Some)
             }
         }
@@ -579,18 +568,7 @@ impl Ctx {
                 from_tasks: true,
                 ..
             } => {
-                let Some(t) = tallies.pop_front() else {
-                    anyhow::bail!(
-                        "the tasks hold fewer results than this run takes (next: `{label}`)"
-                    );
-                };
-                if t.label != label {
-                    anyhow::bail!(
-                        "the tasks' next result is `{}`, this run's is `{label}`: not tasks of \
-                         this sweep",
-                        t.label
-                    );
-                }
+                let t = crate::shard::next_stored(tallies, label)?;
                 finish(&t.parts, &t.note).map(Some)
             }
         }

@@ -84,6 +84,20 @@ pub enum Mc {
     },
 }
 
+/// The next stored tally of a merge, which must be the one the run asks for (`label`).
+pub(crate) fn next_stored(tallies: &mut VecDeque<Tally>, label: &str) -> Result<Tally> {
+    let Some(t) = tallies.pop_front() else {
+        bail!("the shards hold fewer tallies than this run takes (next: `{label}`)");
+    };
+    if t.label != label {
+        bail!(
+            "the shards' next tally is `{}`, this run's is `{label}`: not shards of this run",
+            t.label
+        );
+    }
+    Ok(t)
+}
+
 /// Per-part layout in the header.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct PartHeader {
