@@ -10,7 +10,9 @@
 pub mod accuracy_cost;
 pub mod common;
 pub mod convergence;
+pub mod convergence_check;
 pub mod cost;
+pub mod emissive_cube;
 pub mod experiment;
 pub mod i3rc_step_cloud;
 pub mod images;

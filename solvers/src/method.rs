@@ -357,6 +357,13 @@ pub trait Method: fmt::Debug + Send + Sync {
     fn anisotropy(&self) -> Option<AnisotropyScaling> {
         None
     }
+
+    /// The face coefficient its solve uses between medium and vacuum voxels; the pipeline's
+    /// raymarch reconstructs φ inside a surface voxel from it (see [`crate::pipeline`]). The
+    /// paper's face by default.
+    fn vacuum_face(&self) -> crate::fld::VacuumFace {
+        crate::fld::VacuumFace::Paper
+    }
 }
 
 /// Named numeric parameters of a method (`omega=1.5`); a family consumes the ones it knows

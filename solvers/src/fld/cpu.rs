@@ -33,6 +33,8 @@ pub(super) struct Params<T> {
     /// Under-relaxation θ of the D update and 1 − θ.
     pub(super) theta: T,
     pub(super) one_minus_theta: T,
+    /// Δl (the Marshak face coefficient).
+    pub(super) dl: T,
 }
 
 /// The packed red-black state of one diffusion solve.
@@ -53,6 +55,9 @@ pub struct CpuFld<T> {
     src: [Vec<T>; 2],
     phi: [Vec<T>; 2],
     d: [Vec<T>; 2],
+    /// 1 where the voxel is vacuum (σt ≤ σ_ε), else 0; read only with
+    /// [`super::VacuumFace::Marshak`].
+    vac: [Vec<T>; 2],
     params: Params<T>,
     tolerance: f64,
     /// j̄ (or its substitute when there is no emission, see the module docs); the solve runs
@@ -133,6 +138,7 @@ impl<T: Real> CpuFld<T> {
         let mut src = [vec![T::zero(); plen], vec![T::zero(); plen]];
         let mut phi = [vec![phi0; plen], vec![phi0; plen]];
         let mut d = [vec![d0; plen], vec![d0; plen]];
+        let mut vac = [vec![T::zero(); plen], vec![T::zero(); plen]];
         let cda = config.limiter.is_constant();
         let third = T::one() / T::c(3.0);
         for k in 0..nz {
@@ -147,6 +153,9 @@ impl<T: Real> CpuFld<T> {
                         KnudsenSigma::EffectiveAlbedo => (a * medium.sigma_t[n].f()).max(sigma_eps),
                     };
                     sig[c][p] = T::c(ks);
+                    if medium.sigma_t[n].f() <= sigma_eps {
+                        vac[c][p] = T::one();
+                    }
                     absorb[c][p] = T::c((1.0 - a) * st * dl * dl);
                     src[c][p] = T::c(medium.emission[n].f() / scale * dl * dl);
                     if cda {
@@ -170,6 +179,7 @@ impl<T: Real> CpuFld<T> {
             src,
             phi,
             d,
+            vac,
             params: Params {
                 omega,
                 one_minus_omega: T::one() - omega,
@@ -178,6 +188,7 @@ impl<T: Real> CpuFld<T> {
                 floor,
                 theta: T::c(config.d_relaxation),
                 one_minus_theta: T::c(1.0 - config.d_relaxation),
+                dl: T::c(dl),
             },
             tolerance,
             j_ref,
@@ -440,21 +451,34 @@ impl<T: Real> CpuFld<T> {
     /// One colour pass over all interior voxels of colour `c`; returns Σ residual² over the
     /// voxels counted in the RMS.
     fn pass(&mut self, c: usize) -> f64 {
+        match self.config.vacuum_face {
+            super::VacuumFace::Paper => self.pass_face::<false>(c),
+            super::VacuumFace::Marshak => self.pass_face::<true>(c),
+        }
+    }
+
+    fn pass_face<const M: bool>(&mut self, c: usize) -> f64 {
         match self.config.limiter {
-            FluxLimiter::Cda => self.pass_with::<false, _>(c, |_| T::zero()),
-            FluxLimiter::Sum => self.pass_with::<true, _>(c, |r| FluxLimiter::Sum.eval(r)),
-            FluxLimiter::Max => self.pass_with::<true, _>(c, |r| FluxLimiter::Max.eval(r)),
-            FluxLimiter::Kershaw => self.pass_with::<true, _>(c, |r| FluxLimiter::Kershaw.eval(r)),
+            FluxLimiter::Cda => self.pass_with::<false, M, _>(c, |_| T::zero()),
+            FluxLimiter::Sum => self.pass_with::<true, M, _>(c, |r| FluxLimiter::Sum.eval(r)),
+            FluxLimiter::Max => self.pass_with::<true, M, _>(c, |r| FluxLimiter::Max.eval(r)),
+            FluxLimiter::Kershaw => {
+                self.pass_with::<true, M, _>(c, |r| FluxLimiter::Kershaw.eval(r))
+            }
             FluxLimiter::Larsen(n) => {
-                self.pass_with::<true, _>(c, move |r| FluxLimiter::Larsen(n).eval(r))
+                self.pass_with::<true, M, _>(c, move |r| FluxLimiter::Larsen(n).eval(r))
             }
             FluxLimiter::LevermorePomraning => {
-                self.pass_with::<true, _>(c, super::limiter::levermore_pomraning)
+                self.pass_with::<true, M, _>(c, super::limiter::levermore_pomraning)
             }
         }
     }
 
-    fn pass_with<const FLD: bool, L: Fn(T) -> T + Sync>(&mut self, c: usize, limiter: L) -> f64 {
+    fn pass_with<const FLD: bool, const M: bool, L: Fn(T) -> T + Sync>(
+        &mut self,
+        c: usize,
+        limiter: L,
+    ) -> f64 {
         let [nx, ny, nz] = self.grid.n;
         let h = self.h;
         let slab = ny * h;
@@ -469,6 +493,7 @@ impl<T: Real> CpuFld<T> {
             (phi1, &*phi0, d1, &*d0)
         };
         let (sig, absorb, src) = (&self.sig[c], &self.absorb[c], &self.src[c]);
+        let (vac_c, vac_o) = (&self.vac[c], &self.vac[1 - c]);
         let limiter = &limiter;
         let partial: Vec<f64> = phi_c
             .par_chunks_mut(slab)
@@ -486,6 +511,7 @@ impl<T: Real> CpuFld<T> {
                     let g = (k * ny + j) * h;
                     let rows = Rows::around(phi_o, g, h, slab);
                     let drows = Rows::around(d_o, g, h, slab);
+                    let vrows = Rows::around(vac_o, g, h, slab);
                     let counted_row = window.counts_row(j, k);
                     // Interior i = 2m + s ∈ [1, nx − 2].
                     let m_lo = 1 - s;
@@ -497,14 +523,16 @@ impl<T: Real> CpuFld<T> {
                         (0, 0)
                     };
                     acc = acc
-                        + update_row::<T, FLD, L>(
+                        + update_row::<T, FLD, M, L>(
                             &mut phi_slab[row..row + h],
                             &mut d_slab[row..row + h],
                             &sig[g..g + h],
                             &absorb[g..g + h],
                             &src[g..g + h],
+                            &vac_c[g..g + h],
                             &rows,
                             &drows,
+                            &vrows,
                             s,
                             m_lo..m_hi + 1,
                             cm_lo..cm_hi,
@@ -562,14 +590,16 @@ impl<'a, T> Rows<'a, T> {
 /// checks and vectorise the loop.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn update_row<T: Real, const FLD: bool, L: Fn(T) -> T>(
+fn update_row<T: Real, const FLD: bool, const M: bool, L: Fn(T) -> T>(
     phi: &mut [T],
     d: &mut [T],
     sig: &[T],
     absorb: &[T],
     src: &[T],
+    vac: &[T],
     po: &Rows<T>,
     dn: &Rows<T>,
+    vn: &Rows<T>,
     s: usize,
     ms: std::ops::Range<usize>,
     counted: std::ops::Range<usize>,
@@ -583,6 +613,9 @@ fn update_row<T: Real, const FLD: bool, L: Fn(T) -> T>(
     let (xl, xr) = (m0 + s - 1, m0 + s);
     let [pxl, pxr, pym, pyp, pzm, pzp] = po.cut(xl, xr, m0, len);
     let [dxl, dxr, dym, dyp, dzm, dzp] = dn.cut(xl, xr, m0, len);
+    let [vxl, vxr, vym, vyp, vzm, vzp] = vn.cut(xl, xr, m0, len);
+    let vac = &vac[m0..m0 + len];
+    let (two, four) = (T::c(2.0), T::c(4.0));
     let (sig, absorb, src) = (
         &sig[m0..m0 + len],
         &absorb[m0..m0 + len],
@@ -612,17 +645,38 @@ fn update_row<T: Real, const FLD: bool, L: Fn(T) -> T>(
         } else {
             d[q]
         };
-        // FLD Eq 32 with D_ps = (D_p + D_s)/2.
-        let sum_phi = ns[0] + ns[1] + ns[2] + ns[3] + ns[4] + ns[5];
-        let sum_dphi = ds[0] * ns[0]
-            + ds[1] * ns[1]
-            + ds[2] * ns[2]
-            + ds[3] * ns[3]
-            + ds[4] * ns[4]
-            + ds[5] * ns[5];
-        let sum_d = ds[0] + ds[1] + ds[2] + ds[3] + ds[4] + ds[5];
-        let num = src[q] + half * (d_p * sum_phi + sum_dphi);
-        let den = absorb[q] + half * (six * d_p + sum_d);
+        let (num, den) = if M {
+            // A face between medium and vacuum: the Marshak face coefficient of the medium
+            // side's D (see the `fld` module docs), D_ps = 2 D Δl/(Δl + 4 D); elsewhere Eq 32.
+            let vp = vac[q] > half;
+            let vs = [vxl[q], vxr[q], vym[q], vyp[q], vzm[q], vzp[q]];
+            let (mut num, mut den) = (src[q], absorb[q]);
+            for k in 0..6 {
+                let f = if vp != (vs[k] > half) {
+                    let dm = if vp { ds[k] } else { d_p };
+                    two * dm * p.dl / (p.dl + four * dm)
+                } else {
+                    half * (d_p + ds[k])
+                };
+                num = num + f * ns[k];
+                den = den + f;
+            }
+            (num, den)
+        } else {
+            // FLD Eq 32 with D_ps = (D_p + D_s)/2.
+            let sum_phi = ns[0] + ns[1] + ns[2] + ns[3] + ns[4] + ns[5];
+            let sum_dphi = ds[0] * ns[0]
+                + ds[1] * ns[1]
+                + ds[2] * ns[2]
+                + ds[3] * ns[3]
+                + ds[4] * ns[4]
+                + ds[5] * ns[5];
+            let sum_d = ds[0] + ds[1] + ds[2] + ds[3] + ds[4] + ds[5];
+            (
+                src[q] + half * (d_p * sum_phi + sum_dphi),
+                absorb[q] + half * (six * d_p + sum_d),
+            )
+        };
         // FLD Eq 37, before the update (see the module docs of `fld`).
         let res = (num - phi_p * den) * p.inv_dl2;
         let w = if q >= c_lo && q < c_hi {

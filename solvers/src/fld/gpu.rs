@@ -146,6 +146,13 @@ impl<'a> GpuFld<'a> {
         config: &FldConfig,
     ) -> Result<Self, SolverError> {
         let t0 = Instant::now();
+        if config.vacuum_face == super::VacuumFace::Marshak {
+            return Err(SolverError::Unsupported(
+                "the Marshak vacuum face runs on the CPU only (the GPU kernel has the paper's \
+                 face)"
+                    .into(),
+            ));
+        }
         medium.validate()?;
         config.validate()?;
         let grid = medium.grid;

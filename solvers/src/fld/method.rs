@@ -9,7 +9,7 @@
 //! under-relaxation of the D update, see the module docs of [`crate::fld`]).
 
 use super::multigrid::{CpuMultigrid, MgConfig};
-use super::{Boundary, FldConfig, FluxLimiter};
+use super::{Boundary, FldConfig, FluxLimiter, VacuumFace};
 use crate::method::{
     AnisotropyScaling, Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem,
     Tolerance,
@@ -45,6 +45,12 @@ impl FldMethod {
     /// The same method solved by FAS multigrid with default cycle settings.
     pub fn multigrid(mut self) -> Self {
         self.multigrid = Some(MgConfig::default());
+        self
+    }
+
+    /// Builder: the face coefficient between medium and vacuum.
+    pub fn with_vacuum_face(mut self, f: VacuumFace) -> Self {
+        self.config.vacuum_face = f;
         self
     }
 
@@ -85,6 +91,10 @@ impl Method for FldMethod {
             AnisotropyScaling::Paper => base,
             a => format!("{base}:{a}"),
         };
+        let base = match self.config.vacuum_face {
+            VacuumFace::Paper => base,
+            VacuumFace::Marshak => format!("{base}:marshak"),
+        };
         match self.multigrid {
             Some(_) => format!("{base}:mg"),
             None => base,
@@ -95,9 +105,13 @@ impl Method for FldMethod {
         Some(self.anisotropy)
     }
 
+    fn vacuum_face(&self) -> VacuumFace {
+        self.config.vacuum_face
+    }
+
     fn capabilities(&self) -> Capabilities {
         Capabilities {
-            gpu: true,
+            gpu: self.config.vacuum_face == VacuumFace::Paper,
             f64: true,
             volume_source: true,
             anisotropic: false,
@@ -175,11 +189,13 @@ pub const CDA: MethodFamily = MethodFamily {
     name: "cda",
     title: "classical diffusion (CDA), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 11–12, 26–27, 30–37, Algorithm 1)",
-    variants: "[paper|similarity][:mg]",
+    variants: "[paper|similarity][:marshak][:mg]",
     params: PARAMS,
     build: |variant, params| {
-        let (_, a, mg) = options(variant, false)?;
-        let m = FldMethod::new(FluxLimiter::Cda).with_anisotropy(a);
+        let (_, a, face, mg) = options(variant, false)?;
+        let m = FldMethod::new(FluxLimiter::Cda)
+            .with_anisotropy(a)
+            .with_vacuum_face(face);
         let m = if mg { m.multigrid() } else { m };
         Ok(Box::new(m.with_params(params)?))
     },
@@ -191,29 +207,33 @@ pub const FLD: MethodFamily = MethodFamily {
     name: "fld",
     title: "flux-limited diffusion (FLD), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 15–20, Table 2, Algorithm 1)",
-    variants: "lp|sum|max|kershaw|larsen<n>[:paper|similarity][:mg]",
+    variants: "lp|sum|max|kershaw|larsen<n>[:paper|similarity][:marshak][:mg]",
     params: PARAMS,
     build: |variant, params| {
-        let (limiter, a, mg) = options(variant, true)?;
+        let (limiter, a, face, mg) = options(variant, true)?;
         let limiter = match limiter {
             None => FluxLimiter::LevermorePomraning,
             Some(v) => v.trim().parse()?,
         };
-        let m = FldMethod::new(limiter).with_anisotropy(a);
+        let m = FldMethod::new(limiter)
+            .with_anisotropy(a)
+            .with_vacuum_face(face);
         let m = if mg { m.multigrid() } else { m };
         Ok(Box::new(m.with_params(params)?))
     },
 };
 
-/// Splits a `cda`/`fld` variant into (limiter, anisotropy scaling, multigrid): tokens
-/// separated by `:`, where `mg` selects multigrid, `paper`/`similarity` the scaling, and (for
-/// `fld`, first) any other token the limiter.
+/// Splits a `cda`/`fld` variant into (limiter, anisotropy scaling, vacuum face, multigrid):
+/// tokens separated by `:`, where `mg` selects multigrid, `paper`/`similarity` the scaling,
+/// `marshak` the Marshak vacuum face, and (for `fld`, first) any other token the limiter.
+/// `marshak` with `mg` is an error (multigrid has the paper's face only).
 fn options(
     variant: Option<&str>,
     has_limiter: bool,
-) -> Result<(Option<String>, AnisotropyScaling, bool), SolverError> {
+) -> Result<(Option<String>, AnisotropyScaling, VacuumFace, bool), SolverError> {
     let mut limiter = None;
     let mut scaling = AnisotropyScaling::default();
+    let mut face = VacuumFace::Paper;
     let mut mg = false;
     for (k, tok) in variant.unwrap_or("").split(':').enumerate() {
         let t = tok.trim();
@@ -222,6 +242,8 @@ fn options(
         }
         if t.eq_ignore_ascii_case("mg") {
             mg = true;
+        } else if t.eq_ignore_ascii_case("marshak") {
+            face = VacuumFace::Marshak;
         } else if let Some(a) = AnisotropyScaling::parse(t) {
             scaling = a;
         } else if has_limiter && k == 0 {
@@ -229,20 +251,28 @@ fn options(
         } else {
             return Err(SolverError::UnknownName {
                 what: if has_limiter {
-                    "variant of fld (after the limiter: paper, similarity, mg)"
+                    "variant of fld (after the limiter: paper, similarity, marshak, mg)"
                 } else {
                     "variant of cda"
                 },
                 got: t.to_string(),
                 known: if has_limiter {
-                    "lp, sum, max, kershaw, larsen<n>, then paper|similarity and/or mg".into()
+                    "lp, sum, max, kershaw, larsen<n>, then paper|similarity, marshak and/or mg"
+                        .into()
                 } else {
-                    "paper, similarity, mg".into()
+                    "paper, similarity, marshak, mg".into()
                 },
             });
         }
     }
-    Ok((limiter, scaling, mg))
+    if mg && face == VacuumFace::Marshak {
+        return Err(SolverError::UnknownName {
+            what: "variant combination (multigrid has the paper's vacuum face only)",
+            got: "marshak:mg".into(),
+            known: "marshak without mg, or mg without marshak".into(),
+        });
+    }
+    Ok((limiter, scaling, face, mg))
 }
 
 #[cfg(test)]

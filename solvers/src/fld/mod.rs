@@ -92,6 +92,61 @@ pub use gpu::GpuFld;
 pub use limiter::FluxLimiter;
 pub use method::{CDA, FLD, FldMethod};
 
+/// The φ the raymarch interpolates after a solve with the Marshak vacuum face. With
+/// κ_p = (4D_p − Δl)/(Δl + 4D_p), D_p = 1/(3σt_p), a vacuum voxel next to a medium voxel p
+/// (vacuum: σt ≤ σ_ε = 10⁻³/L) across a face takes κ_p φ_p, so that φ, linear between the
+/// voxel centres, equals the Marshak face value φ_f = (1 + κ_p)φ_p/2 = 4D_pφ_p/(Δl + 4D_p)
+/// (twice the face's flux) on the face: inside the surface voxel φ then runs linearly from
+/// φ_f to φ_p, the profile the face coefficient assumes. A vacuum voxel diagonal to p across
+/// an edge takes φ_p and one across a corner κ_p φ_p: then the trilinear interpolant on
+/// every face plane of p is φ_f up to the medium's edges and corners (with 0 there, as the
+/// solve leaves the Dirichlet layer, the surface dips to negative values near every edge of
+/// an optically thick medium). Each takes the mean over its neighbours of the lowest kind
+/// (faces before edges before corners); other voxels are unchanged. The face and corner
+/// values are negative for σt·Δl > 4/3 and only ever weight points in vacuum or inside a
+/// surface voxel's outer half.
+pub fn marshak_ghosts(medium: &Medium<f64>, phi: &[f64]) -> Vec<f64> {
+    let g = medium.grid;
+    let eps = 1e-3 / g.extent();
+    let dl = g.dl;
+    let mut out = phi.to_vec();
+    if phi.len() != g.len() {
+        return out;
+    }
+    for idx in 0..g.len() {
+        if medium.sigma_t[idx] > eps {
+            continue;
+        }
+        let [x, y, z] = g.coords(idx).map(|v| v as i64);
+        // (sum, count) per kind: 1 = face, 2 = edge, 3 = corner neighbours.
+        let mut acc = [(0.0, 0usize); 4];
+        for dz in -1i64..=1 {
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let m = (dx != 0) as usize + (dy != 0) as usize + (dz != 0) as usize;
+                    let n = [x + dx, y + dy, z + dz];
+                    if m == 0 || n.iter().zip(g.n).any(|(&v, k)| v < 0 || v >= k as i64) {
+                        continue;
+                    }
+                    let p = g.index(n[0] as usize, n[1] as usize, n[2] as usize);
+                    let st = medium.sigma_t[p];
+                    if st > eps {
+                        let d = 1.0 / (3.0 * st);
+                        let kappa = (4.0 * d - dl) / (dl + 4.0 * d);
+                        // Faces and corners κ φ_p, edges φ_p (see above).
+                        acc[m].0 += phi[p] * if m == 2 { 1.0 } else { kappa };
+                        acc[m].1 += 1;
+                    }
+                }
+            }
+        }
+        if let Some((sum, count)) = acc[1..].iter().find(|(_, c)| *c > 0) {
+            out[idx] = sum / *count as f64;
+        }
+    }
+    out
+}
+
 use crate::gpu::Timer;
 use crate::method::{Solution, Stop};
 use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
@@ -108,6 +163,19 @@ pub enum KnudsenSigma {
     /// bound |E| ≤ φ and has D → 1/(3σs) in the diffusive limit, which is closer to the
     /// Grosjean coefficient (2 − α)/(3σt) at low albedo. Both floored at σ_ε.
     EffectiveAlbedo,
+}
+
+/// The diffusion coefficient of a face between a medium voxel and a vacuum voxel (σt ≤ σ_ε).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum VacuumFace {
+    /// The paper's D_ps = (D_p + D_s)/2 (FLD Eq 32), with the vacuum voxel's D from the floors
+    /// of FLD Eqs 33/35.
+    #[default]
+    Paper,
+    /// A Marshak (Robin) condition on the face: no light enters from the vacuum side, so the
+    /// face's flux is half its fluence, F = φ_f/2, and with F = D(φ_p − φ_f)/(Δl/2) on the
+    /// medium side D_ps = 2DΔl/(Δl + 4D) with D the medium voxel's (method spec `:marshak`).
+    Marshak,
 }
 
 /// Solver parameters of FLD Algorithm 1.
@@ -135,6 +203,8 @@ pub struct FldConfig {
     /// θ ∈ (0, 1]: under-relaxation of the D update (see the module docs). 1 is FLD
     /// Algorithm 1 verbatim; the default 0.5 keeps nonlinear SOR convergent up to ω = 1.9.
     pub d_relaxation: f64,
+    /// The face coefficient between medium and vacuum (CPU SOR only for `Marshak`).
+    pub vacuum_face: VacuumFace,
 }
 
 impl Default for FldConfig {
@@ -146,9 +216,10 @@ impl Default for FldConfig {
             max_iterations: 100_000,
             sigma_eps: None,
             epsilon: None,
-            residual_margin: 1,
+            residual_margin: 0,
             knudsen: KnudsenSigma::Extinction,
             d_relaxation: 0.5,
+            vacuum_face: VacuumFace::Paper,
         }
     }
 }

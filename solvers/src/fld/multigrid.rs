@@ -131,6 +131,13 @@ impl<T: Real> CpuMultigrid<T> {
         mg: &MgConfig,
     ) -> Result<Self, SolverError> {
         let t0 = Instant::now();
+        if config.vacuum_face == super::VacuumFace::Marshak {
+            return Err(SolverError::Unsupported(
+                "multigrid has the paper's vacuum face only (its residual operator does not \
+                 know the Marshak face)"
+                    .into(),
+            ));
+        }
         if mg.pre + mg.post == 0 {
             return Err(SolverError::BadParameter {
                 name: "smoothing sweeps",

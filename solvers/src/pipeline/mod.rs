@@ -415,7 +415,15 @@ pub fn render_channels(
                         solve_grid: coarse.grid,
                         phi: sol.phi.clone(),
                     });
-                    phi = Some((coarse.grid, sol.phi));
+                    // With the Marshak face, φ inside a surface voxel is reconstructed from
+                    // the face value ([`crate::fld::marshak_ghosts`]).
+                    let march = match config.method.vacuum_face() {
+                        crate::fld::VacuumFace::Paper => sol.phi,
+                        crate::fld::VacuumFace::Marshak => {
+                            crate::fld::marshak_ghosts(&coarse, &sol.phi)
+                        }
+                    };
+                    phi = Some((coarse.grid, march));
                 }
                 Pass::RaymarchSingle { lights, .. } => {
                     let ls: Vec<BakedLight> = baked

@@ -319,7 +319,7 @@ impl Default for RdeConfig {
             time_step: TimeStep::default(),
             check: StepCheck::Gershgorin,
             run: Run::default(),
-            residual_margin: 1,
+            residual_margin: 0,
             check_every: 32,
         }
     }

@@ -1,0 +1,2 @@
+//! Binary of [`experiments::emissive_cube`].
+experiments::experiment_main!(experiments::emissive_cube::EmissiveCube);
