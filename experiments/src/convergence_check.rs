@@ -40,7 +40,7 @@ use std::time::Instant;
 /// The methods measured by default: CDA, FLD with each limiter, LBM, the steady RDE and the
 /// multigrid variants.
 pub const DEFAULT_METHODS: &str = "cda,fld:lp,fld:sum,fld:max,fld:kershaw,fld:larsen2,lbm,rde,\
-cda:mg,fld:lp:mg,fld:sum:mg,fld:max:mg,fld:kershaw:mg,fld:larsen2:mg";
+cda:mg,fld:lp:mg,fld:sum:mg,fld:max:mg,fld:kershaw:mg,fld:larsen2:mg,cda:marshak,fld:lp:marshak";
 
 /// The methods of `--quick`.
 pub const QUICK_METHODS: &str = "cda,fld:lp,fld:kershaw,lbm,rde,cda:mg,fld:lp:mg";

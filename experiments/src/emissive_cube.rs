@@ -36,7 +36,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "100,1000")]
     pub sigma_t: Vec<f64>,
     /// Grid methods (registry names, comma-separated).
-    #[arg(long, default_value = "fld:lp,cda,lbm")]
+    #[arg(long, default_value = "fld:lp,cda,lbm,fld:lp:marshak,cda:marshak")]
     pub methods: String,
     /// Downsampling factors of the diffusion solve (default 1,2,3,4; 1,4 with --quick).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<usize>)]

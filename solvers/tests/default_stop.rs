@@ -6,10 +6,11 @@
 //!
 //! Before the residual window counted the voxels next to the boundary layer
 //! (`FldConfig::residual_margin` 1, FLD Section 5's "ignoring voxels close to the
-//! boundary"), the default stop left CDA 2.5 % (σt·Δl = 6) and 80 % (60) and FLD-LP 100 %
-//! (60) from the tight solve at 8³ (measured, `convergence_check --quick`): with a light from
-//! outside, the source of an optically thick cube sits in its surface layer, which the window
-//! left out, so the first sweeps looked converged.
+//! boundary"), this test failed (measured on these 16³ cubes): CDA stopped 1.4 % (σt·Δl = 6,
+//! 16 iterations) and 84 % (60, 1 iteration) and FLD-LP 100 % (60, 1 iteration) from the
+//! tight solve. With a light from outside, the source of an optically thick cube sits in its
+//! surface layer, which the window left out, so the first sweeps looked converged. With
+//! every interior voxel counted: at most 6.5·10⁻⁵ (f64 and f32).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 

@@ -300,6 +300,32 @@ mod tests {
         assert!(method::parse("fld:lp:bogus").is_err());
     }
 
+    /// `:marshak` selects the Marshak vacuum face, round-trips, runs on the CPU only and not
+    /// with multigrid (a typed error, not a panic).
+    #[test]
+    fn the_marshak_variant_parses_and_says_where_it_runs() {
+        for (spec, name) in [
+            ("cda:marshak", "cda:marshak"),
+            ("FLD:LP:Marshak", "fld:lp:marshak"),
+            (
+                "fld:kershaw:similarity:marshak",
+                "fld:kershaw:similarity:marshak",
+            ),
+        ] {
+            let m = method::parse(spec).unwrap();
+            assert_eq!(m.name(), name);
+            assert_eq!(method::parse(&m.name()).unwrap().name(), name);
+            assert_eq!(m.vacuum_face(), VacuumFace::Marshak);
+            assert!(!m.capabilities().gpu);
+        }
+        assert_eq!(
+            method::parse("cda").unwrap().vacuum_face(),
+            VacuumFace::Paper
+        );
+        assert!(method::parse("cda:marshak:mg").is_err());
+        assert!(method::parse("fld:lp:mg:marshak").is_err());
+    }
+
     /// The similarity variant solves the scaled medium: at albedo 1 and g = 0.9, σt' = σt/10;
     /// its φ equals the paper variant's φ on a medium with σt/10 (same arithmetic), and
     /// differs from the paper variant on the original medium.

@@ -25,6 +25,23 @@
 //!   identically zero for ω = 1, so that cannot be the intended order. The RMS over
 //!   interior voxels further than [`FldConfig::residual_margin`] voxels from the boundary
 //!   layer, divided by j̄, is the stopping criterion.
+//! * **Residual window: every interior voxel (margin 0; changed from 1, issue 12 item 4).**
+//!   FLD Section 5 ignores "voxels close to the boundary"; with a margin of 1 the window left
+//!   out the medium's surface layer of the pipeline's padded grids, which is where an
+//!   optically thick medium lit from outside has all its source, so the first sweeps looked
+//!   converged: at the default R̄/j̄ < 10⁻⁴ on issue 12's albedo-1 cubes (16³, directional
+//!   light, downsample 1) CDA stopped 1.4 % (σt·Δl = 6, 16 iterations) and 84 % (60, 1
+//!   iteration) and FLD-LP 100 % (60, 1 iteration) from a tight solve (R̄/j̄ < 10⁻¹⁰). With
+//!   margin 0 every SOR method (CDA and the five limiters, f32 and f64) stops within
+//!   6.5·10⁻⁵ of the tight solve on those cubes and within 2.5·10⁻⁵ on the atlas's four
+//!   datasets (downsample 4), at the same iteration counts on the datasets within 7 %
+//!   (`experiments convergence_check`, `results/convergence_check`). The tight solves are
+//!   within 10⁻¹⁰ of a second solve at R̄/j̄ < 10⁻¹², i.e. converged. Pinned by
+//!   `solvers/tests/default_stop.rs`, which fails with margin 1. Not fixed by this rule and
+//!   reported there: multigrid (`cda:mg` stops after 1–2 cycles 12–26 % from its own fixed
+//!   point on those cubes, and stalls on `shell_core`) and the steady RDE (45–49 % on the
+//!   cubes at σt·Δl = 6 and 60; at rel = 10⁻⁸ still 2.6 % at 60), whose convergence
+//!   measures are residuals of a far stiffer iteration.
 //! * **Projection.** An over-relaxed update (ω > 1) that would make φ negative is set to 0
 //!   (projected SOR). The exact solution is non-negative, so the fixed point is unchanged;
 //!   NaN is *not* masked by this projection.
@@ -54,6 +71,23 @@
 //!   path of the surface, which is why the pipeline's emissive albedo-1 images are far too dark
 //!   (CDA) and too bright, growing with σt (FLD) (issue 12's table). Pinned by
 //!   `the_vacuum_face_coefficient_sets_the_surface_fluence`.
+//! * **The Marshak vacuum face (variant `:marshak`, [`VacuumFace::Marshak`]; CPU SOR only).**
+//!   On a face between a medium voxel p and a vacuum voxel (σt ≤ σ_ε) no light enters from
+//!   the vacuum, so the face's flux is half its fluence, F = φ_f/2 (Marshak), and with
+//!   F = D_p(φ_p − φ_f)/(Δl/2) on the medium side the face coefficient is
+//!   D_ps = 2D_pΔl/(Δl + 4D_p) (bounded by Δl/2 however thin the medium; → 2D_p, not the
+//!   paper's D_p/2, when D_p ≪ Δl). Energy is conserved as with the paper's face
+//!   (`solvers/tests/marshak.rs`: outflow = ∫ j dV to 10⁻⁸, every limiter). The raymarch
+//!   then needs φ inside the surface voxel, which at σt·Δl ≫ 1 is far below φ_p: the
+//!   pipeline interpolates φ with ghost values in the vacuum voxels that put the Marshak
+//!   face value on the face ([`marshak_ghosts`]). Measured on issue 12's emissive albedo-1
+//!   cube (8³, no lights, j = 1, downsample 1, image mean, `experiments emissive_cube`):
+//!   CDA/FLD-LP with the Marshak face 0.0294 at σt = 100 and 0.0293 at σt = 1000 (the thick
+//!   limit is independent of σt, as it must be), path tracer 0.0314 ± 0.0007 at σt = 100;
+//!   the paper's faces give FLD-LP 0.262 / 2.33 and CDA 4.4·10⁻⁴ / 4.0·10⁻⁵. The default stays
+//!   the paper's face: the GPU kernel and multigrid have only that one (a `:marshak` method
+//!   reports itself CPU-only, and `:marshak:mg` is refused), and figures that reproduce the
+//!   paper keep its boundary. Pinned by `solvers/tests/marshak.rs`.
 //! * **Anisotropy (issue 12, item 2).** The paper scatters isotropically with σs as given
 //!   (variant `paper`, e.g. `cda`, `fld:lp`); `cda:similarity`, `fld:<limiter>:similarity`
 //!   solve with σs' = (1 − g)σs, σt' = σa + σs' and the source unchanged
@@ -196,7 +230,8 @@ pub struct FldConfig {
     /// (the paper's 10⁻²⁰ in f64, 10⁻¹⁰ in f32 to stay clear of subnormals).
     pub epsilon: Option<f64>,
     /// Voxels next to the boundary layer left out of the RMS residual (FLD Section 5,
-    /// "ignoring voxels close to the boundary"). 0 uses every interior voxel.
+    /// "ignoring voxels close to the boundary"). 0 (the default) uses every interior voxel
+    /// (see the module docs, "Residual window").
     pub residual_margin: usize,
     /// The σ in the Knudsen number and D.
     pub knudsen: KnudsenSigma,
