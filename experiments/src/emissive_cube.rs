@@ -41,12 +41,12 @@ pub struct Args {
     /// Downsampling factors of the diffusion solve (default 1,2,3,4; 1,4 with --quick).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<usize>)]
     pub downsample: Option<Vec<usize>>,
-    /// Path-tracer samples per pixel (≥ 16; default 64, 16 with --quick).
+    /// Path-tracer samples per pixel (≥ 16; default 1024, 16 with --quick).
     #[arg(long, value_parser = crate::common::count_u32)]
     pub spp: Option<u32>,
     /// The σt up to which the path tracer runs (its cost grows like σt²; above it the row
-    /// is left out). Default 100.
-    #[arg(long, default_value_t = 100.0)]
+    /// is left out). Default 1000.
+    #[arg(long, default_value_t = 1000.0)]
     pub pt_max_sigma_t: f64,
     /// Voxels per axis (default 16; 8 with --quick).
     #[arg(long, value_parser = crate::common::count_usize)]
@@ -107,7 +107,7 @@ pub fn run(args: &Args) -> Result<Vec<Row>> {
 fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
     let quick = args.common.quick;
     let n = args.n.unwrap_or(if quick { 8 } else { 16 });
-    let spp = args.spp.unwrap_or(if quick { 16 } else { 64 });
+    let spp = args.spp.unwrap_or(if quick { 16 } else { 1024 });
     if spp < reference::pathtracer::MIN_BATCHES {
         bail!(
             "--spp {spp}: at least {}",
