@@ -147,7 +147,7 @@ pub fn marshak_ghosts(medium: &Medium<f64>, phi: &[f64]) -> Vec<f64> {
     if phi.len() != g.len() {
         return out;
     }
-    for idx in 0..g.len() {
+    for (idx, ghost) in out.iter_mut().enumerate() {
         if medium.sigma_t[idx] > eps {
             continue;
         }
@@ -175,7 +175,7 @@ pub fn marshak_ghosts(medium: &Medium<f64>, phi: &[f64]) -> Vec<f64> {
             }
         }
         if let Some((sum, count)) = acc[1..].iter().find(|(_, c)| *c > 0) {
-            out[idx] = sum / *count as f64;
+            *ghost = sum / *count as f64;
         }
     }
     out
