@@ -317,7 +317,14 @@ impl Experiment for EmissiveCube {
                                     && x.get("method") == m
                                     && x.get("downsample") == d
                             })
-                            .map_or("—".into(), |x| format!("{:.4}", x.num("mean"))),
+                            .map_or("—".into(), |x| {
+                                let v = x.num("mean");
+                                if v.abs() < 1e-3 {
+                                    format!("{v:.2e}")
+                                } else {
+                                    format!("{v:.4}")
+                                }
+                            }),
                     );
                 }
                 rows.push(r);
