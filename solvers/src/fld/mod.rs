@@ -87,7 +87,14 @@
 //!   the paper's faces give FLD-LP 0.262 / 2.33 and CDA 4.4·10⁻⁴ / 4.0·10⁻⁵. The default stays
 //!   the paper's face: the GPU kernel and multigrid have only that one (a `:marshak` method
 //!   reports itself CPU-only, and `:marshak:mg` is refused), and figures that reproduce the
-//!   paper keep its boundary. Pinned by `solvers/tests/marshak.rs`.
+//!   paper keep its boundary. At σt = 100 (16³, path tracer 1024 spp: 0.03051 ± 0.00034;
+//!   σt = 1000: 0.0310 ± 0.0011) CDA/FLD-LP with the Marshak face are −0.4 % / −1.3 % off at
+//!   downsample 1, −2 % / −4 % at 2 and −9 … −12 % at 3 and 4 (the coarse surface voxel);
+//!   the paper's faces give FLD-LP 0.15 … 0.46 (σt = 100) and 1.2 … 4.3 (1000), CDA
+//!   1.2·10⁻³ … 4·10⁻⁵ (`results/emissive_cube`). Convergence: `cda:marshak` needs more
+//!   iterations where vacuum lies inside the grid (nebula 695 vs 57; `shell_core` reaches the
+//!   20 000 cap 2.3 % from its tight solve), FLD-LP about as many as with the paper's face
+//!   (`results/convergence_check`). Pinned by `solvers/tests/marshak.rs`.
 //! * **Anisotropy (issue 12, item 2).** The paper scatters isotropically with σs as given
 //!   (variant `paper`, e.g. `cda`, `fld:lp`); `cda:similarity`, `fld:<limiter>:similarity`
 //!   solve with σs' = (1 − g)σs, σt' = σa + σs' and the source unchanged
