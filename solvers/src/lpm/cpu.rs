@@ -308,8 +308,7 @@ impl<T: Real> CpuLpm<T> {
             }
             let mut phi_p = vec![T::zero(); nv];
             let mut tally = OrderTally::default();
-            for face in 0..6 {
-                let u_src = &u_prev[face];
+            for (face, u_src) in u_prev.iter().enumerate() {
                 let sum_u: f64 = u_src.iter().map(|x| x.f()).sum();
                 let dirs0 = face * per;
                 let sweeps: Vec<SweepTally> = if paper {
@@ -339,18 +338,11 @@ impl<T: Real> CpuLpm<T> {
                     let w = self.area(i) * self.dirs.dirs[i].solid_angle;
                     tally.injected += w * s.injected;
                     tally.exited += w * s.exited;
-                    tally.emitted += w * self.grid.dl * self.path_factor(i)
-                        / self.dirs.dirs[i].cos_axis
-                        * sum_u;
+                    tally.emitted +=
+                        w * self.grid.dl * self.path_factor(i) / self.dirs.dirs[i].cos_axis * sum_u;
                 }
-                let (dep, abs) = self.collect(
-                    face,
-                    &gbuf,
-                    &pbuf,
-                    &mut u_cur,
-                    &mut intensity,
-                    &mut phi_p,
-                );
+                let (dep, abs) =
+                    self.collect(face, &gbuf, &pbuf, &mut u_cur, &mut intensity, &mut phi_p);
                 tally.scattered += dep * h3;
                 tally.absorbed += abs * h3;
             }
@@ -376,7 +368,7 @@ impl<T: Real> CpuLpm<T> {
                 break;
             }
             if let Some(rel) = rel {
-                if !(tally.unshot > rel * first_unshot) {
+                if tally.unshot <= rel * first_unshot || tally.unshot.is_nan() {
                     stop = Stop::Converged;
                     break;
                 }
@@ -392,7 +384,14 @@ impl<T: Real> CpuLpm<T> {
         let memory = Memory {
             formula: super::memory_bytes(&self.grid, &self.config, std::mem::size_of::<T>() as u64),
             resident_measured: (allocated * std::mem::size_of::<T>()) as u64
-                + self.tables.iter().map(|t| t.segs.capacity() * std::mem::size_of::<super::geometry::Seg>() + t.start.capacity() * std::mem::size_of::<usize>()).sum::<usize>() as u64,
+                + self
+                    .tables
+                    .iter()
+                    .map(|t| {
+                        t.segs.capacity() * std::mem::size_of::<super::geometry::Seg>()
+                            + t.start.capacity() * std::mem::size_of::<usize>()
+                    })
+                    .sum::<usize>() as u64,
         };
         Ok(LpmSolution {
             grid: self.grid,
@@ -411,6 +410,8 @@ impl<T: Real> CpuLpm<T> {
     /// The collect step of LPM Eq 4 for the m² directions of `face`: U^{d′} and I get
     /// A·F^{i,d′}·T^i/(h³|Ω^{d′}|), the order's fluence Σ_i |Ω^i|A∫L ds/h³. Returns the
     /// deposited Σ_v Σ_d′ ΔU^{d′}|Ω^{d′}| and the absorbed Σ_v σa Δφ (both per h³).
+    // One voxel index addresses the T buffers and every output slice at once.
+    #[allow(clippy::needless_range_loop)]
     fn collect(
         &self,
         face: usize,

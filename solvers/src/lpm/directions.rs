@@ -145,7 +145,8 @@ impl Directions {
         let face = 2 * a + usize::from(w[a] < 0.0);
         let (b, c) = lateral_axes(a);
         let m = self.m as f64;
-        let cell = |t: f64| (((t / w[a].abs() + 1.0) * 0.5 * m).floor().max(0.0) as usize).min(self.m - 1);
+        let cell =
+            |t: f64| (((t / w[a].abs() + 1.0) * 0.5 * m).floor().max(0.0) as usize).min(self.m - 1);
         face * self.m * self.m + cell(w[b]) * self.m + cell(w[c])
     }
 }
@@ -182,9 +183,7 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 pub fn rho(phase: Phase, cos: f64) -> f64 {
     match phase {
         Phase::Isotropic => 1.0,
-        Phase::HenyeyGreenstein { g } => {
-            (1.0 - g * g) / (1.0 + g * g - 2.0 * g * cos).powf(1.5)
-        }
+        Phase::HenyeyGreenstein { g } => (1.0 - g * g) / (1.0 + g * g - 2.0 * g * cos).powf(1.5),
     }
 }
 
