@@ -458,6 +458,7 @@ pub static METHODS: &[MethodFamily] = &[
     crate::fld::CDA,
     crate::fld::FLD,
     crate::lbm::LBM,
+    crate::lpm::LPM,
     crate::rde::RDE,
 ];
 

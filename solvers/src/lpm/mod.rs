@@ -28,6 +28,7 @@
 //! * [`geometry`]: per-(direction, slab) sub-segment tables in exact rational arithmetic.
 //! * [`cpu::CpuLpm`]: rayon sweeps (one task per direction of the LPM, each owning its T)
 //!   and a per-voxel collect in a fixed order; generic over `f32`/`f64`.
+//! * [`method::LpmMethod`]: the registered method `lpm[:paper]` (baked source, CPU).
 //! * [`Formulas`]: the exact form (default) and the paper's literal formulas
 //!   ([`Formulas::paper`]: deposit L(1 − e^{−Ks s}), face area, Δl/ω_z) for the furnace and
 //!   balance tests that show their energy error.
@@ -64,11 +65,13 @@
 pub mod cpu;
 pub mod directions;
 pub mod geometry;
+pub mod method;
 #[cfg(test)]
 mod tests;
 
 pub use cpu::CpuLpm;
 pub use directions::{Directions, PhaseMatrix};
+pub use method::{LPM, LpmMethod};
 
 use crate::method::Stop;
 use crate::scene::Phase;
