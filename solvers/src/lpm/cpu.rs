@@ -29,6 +29,9 @@ pub struct CpuLpm<T> {
     pub tables: Vec<DirectionTable>,
     sigma_t: Vec<T>,
     sigma_s: Vec<T>,
+    /// σt and σs in the x-faces' layout ([`to_x_layout`]), so their sweeps run along memory.
+    sigma_t_x: Vec<T>,
+    sigma_s_x: Vec<T>,
     /// U⁰ = I⁰ = j/4π per voxel (D9).
     source: Vec<T>,
 }
@@ -114,14 +117,17 @@ impl<T: Real> CpuLpm<T> {
             .iter()
             .map(|d| DirectionTable::new(d, config.m, grid.n[d.face / 2]))
             .collect();
-        let sigma_s = medium
+        let sigma_s: Vec<T> = medium
             .sigma_t
             .iter()
             .zip(&medium.albedo)
             .map(|(&s, &a)| s * a)
             .collect();
         let four_pi = T::c(4.0 * PI);
+        let sigma_s: Vec<T> = sigma_s;
         Ok(Self {
+            sigma_t_x: to_x_layout(&grid, &medium.sigma_t),
+            sigma_s_x: to_x_layout(&grid, &sigma_s),
             grid,
             config: config.clone(),
             dirs,
@@ -131,6 +137,26 @@ impl<T: Real> CpuLpm<T> {
             sigma_s,
             source: medium.emission.iter().map(|&j| j / four_pi).collect(),
         })
+    }
+
+    /// Sub-segments one order processes: Σ_i (table entries of i) × (rays of i's face), the
+    /// measured count of D20 (294 n³ for m = 5).
+    pub fn sub_segments_per_order(&self) -> u64 {
+        let n = self.grid.n;
+        self.dirs
+            .dirs
+            .iter()
+            .zip(&self.tables)
+            .map(|(d, t)| {
+                let (b, c) = lateral_axes(d.face / 2);
+                (t.segs.len() * n[b] * n[c]) as u64
+            })
+            .sum()
+    }
+
+    /// Bytes of a solve by our per-buffer formula ([`super::memory_bytes`]).
+    pub fn memory_estimate(&self) -> u64 {
+        super::memory_bytes(&self.grid, &self.config, std::mem::size_of::<T>() as u64).total()
     }
 
     /// The ray tube's cross-section A of direction i: A⊥ = h²|ω·n_f| (D6) or the paper's face
@@ -154,9 +180,54 @@ impl<T: Real> CpuLpm<T> {
     /// Sweeps direction `i` through the grid: reads `u_src` (the unshot U of its cone),
     /// starts and re-enters rays per the wrap rule, accumulates ∫L ds into `g` (and the
     /// paper's deposit into `paper`). Returns the final ray radiances (lattice order).
+    ///
+    /// The x-faces (a = 0) sweep in the layout of [`to_x_layout`] (`u_src` must be in it
+    /// then) into a scratch T that is transposed into `g` (and `paper`) at the end.
     fn sweep(
         &self,
         i: usize,
+        u_src: &[T],
+        l_bc: f64,
+        order: usize,
+        g: &mut [T],
+        paper: Option<&mut [T]>,
+    ) -> (Vec<T>, SweepTally) {
+        if self.dirs.dirs[i].face / 2 != 0 {
+            let n = self.grid.n;
+            let strides = [1, n[0], n[0] * n[1]];
+            let media = (&self.sigma_t[..], &self.sigma_s[..]);
+            return self.sweep_in(i, media, strides, u_src, l_bc, order, g, paper);
+        }
+        let n = self.grid.n;
+        let strides = [n[1] * n[2], 1, n[1]];
+        let media = (&self.sigma_t_x[..], &self.sigma_s_x[..]);
+        let mut gx = vec![T::zero(); g.len()];
+        let mut px = paper.as_ref().map(|p| vec![T::zero(); p.len()]);
+        let out = self.sweep_in(
+            i,
+            media,
+            strides,
+            u_src,
+            l_bc,
+            order,
+            &mut gx,
+            px.as_deref_mut(),
+        );
+        from_x_layout(&self.grid, &gx, g);
+        if let (Some(p), Some(px)) = (paper, px) {
+            from_x_layout(&self.grid, &px, p);
+        }
+        out
+    }
+
+    /// [`Self::sweep`] with the medium and buffers in the layout given by `strides` (of the
+    /// x, y, z voxel indices).
+    #[allow(clippy::too_many_arguments)]
+    fn sweep_in(
+        &self,
+        i: usize,
+        (sigma_t, sigma_s): (&[T], &[T]),
+        strides: [usize; 3],
         u_src: &[T],
         l_bc: f64,
         order: usize,
@@ -167,7 +238,6 @@ impl<T: Real> CpuLpm<T> {
         let (a, sign) = dir.axis();
         let (b, c) = lateral_axes(a);
         let n = self.grid.n;
-        let strides = [1, n[0], n[0] * n[1]];
         let (na, nb, nc) = (n[a], n[b], n[c]);
         let (sa, sb, sc) = (strides[a], strides[b], strides[c]);
         let scale = self.grid.dl * self.path_factor(i);
@@ -228,11 +298,11 @@ impl<T: Real> CpuLpm<T> {
                         for (j, l) in run.iter_mut().enumerate() {
                             let v = v0 + j * sb;
                             let l_in = *l;
-                            let (l_out, int) = segment(l_in, u_src[v], self.sigma_t[v], len, ts);
+                            let (l_out, int) = segment(l_in, u_src[v], sigma_t[v], len, ts);
                             g[v] = g[v] + int;
                             if paper_deposit {
                                 if let Some(p) = paper.as_deref_mut() {
-                                    p[v] = p[v] - l_in * (-(self.sigma_s[v] * len)).exp_m1();
+                                    p[v] = p[v] - l_in * (-(sigma_s[v] * len)).exp_m1();
                                 }
                             }
                             *l = l_out;
@@ -308,8 +378,15 @@ impl<T: Real> CpuLpm<T> {
             }
             let mut phi_p = vec![T::zero(); nv];
             let mut tally = OrderTally::default();
-            for (face, u_src) in u_prev.iter().enumerate() {
-                let sum_u: f64 = u_src.iter().map(|x| x.f()).sum();
+            for (face, u_global) in u_prev.iter().enumerate() {
+                let sum_u: f64 = u_global.iter().map(|x| x.f()).sum();
+                let u_x;
+                let u_src: &[T] = if face / 2 == 0 {
+                    u_x = to_x_layout(&self.grid, u_global);
+                    &u_x
+                } else {
+                    u_global
+                };
                 let dirs0 = face * per;
                 let sweeps: Vec<SweepTally> = if paper {
                     gbuf.par_iter_mut()
@@ -380,6 +457,8 @@ impl<T: Real> CpuLpm<T> {
             + phi_orders.len() * nv
             + self.sigma_t.len()
             + self.sigma_s.len()
+            + self.sigma_t_x.len()
+            + self.sigma_s_x.len()
             + self.source.len();
         let memory = Memory {
             formula: super::memory_bytes(&self.grid, &self.config, std::mem::size_of::<T>() as u64),
@@ -493,6 +572,33 @@ impl<T: Real> CpuLpm<T> {
         parts
             .iter()
             .fold((0.0, 0.0), |acc, p| (acc.0 + p.0, acc.1 + p.1))
+    }
+}
+
+/// `field` (x fastest) in the x-faces' layout y + n_y(z + n_z x), where the sweep axis x is
+/// slowest and the first lateral axis y contiguous.
+pub fn to_x_layout<T: Copy>(grid: &Grid, field: &[T]) -> Vec<T> {
+    let [nx, ny, nz] = grid.n;
+    let mut out = Vec::with_capacity(field.len());
+    for x in 0..nx {
+        for z in 0..nz {
+            for y in 0..ny {
+                out.push(field[x + nx * (y + ny * z)]);
+            }
+        }
+    }
+    out
+}
+
+/// The inverse of [`to_x_layout`], into `out`.
+pub fn from_x_layout<T: Copy>(grid: &Grid, local: &[T], out: &mut [T]) {
+    let [nx, ny, nz] = grid.n;
+    for x in 0..nx {
+        for z in 0..nz {
+            for y in 0..ny {
+                out[x + nx * (y + ny * z)] = local[y + ny * (z + nz * x)];
+            }
+        }
     }
 }
 

@@ -359,7 +359,7 @@ pub struct Memory {
 /// Our explicit per-buffer byte count (D18).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MemoryBytes {
-    /// σt, σs and the source j/4π.
+    /// σt, σs and the source j/4π, and σt, σs again in the x-faces' layout.
     pub medium: u64,
     /// Two U buffer sets of 6 cones.
     pub u: u64,
@@ -371,7 +371,9 @@ pub struct MemoryBytes {
     pub fluence: u64,
     /// Geometry tables.
     pub tables: u64,
-    /// Ray states, m² of the largest face (transient, one per direction task).
+    /// Transient: ray states (m² of the largest face, one per direction task), the x-faces'
+    /// scratch T (and paper deposit) per direction task and their transposed U (upper bound:
+    /// every task at once).
     pub rays: u64,
 }
 
@@ -411,14 +413,17 @@ pub fn memory_bytes(grid: &Grid, config: &LpmConfig, word: u64) -> MemoryBytes {
         .unwrap_or(0);
     let sat = |x: u64, y: u64| x.saturating_mul(y);
     MemoryBytes {
-        medium: sat(3 * nv, word),
+        medium: sat(5 * nv, word),
         u: sat(2 * 6 * nv, word),
         i: sat(config.storage_i.count() as u64 * nv, word),
         t: sat(sat(per * if paper { 2 } else { 1 }, nv), word),
         fluence: sat(sat(1 + kept, nv), word),
         // Table capacities: ≤ 3 sub-segments per slab, slabs + 1 starts per direction.
         tables: slabs * 3 * seg + (slabs + 6 * per) * usz,
-        rays: sat(sat(per, lateral), word),
+        rays: sat(
+            sat(per, lateral) + sat(per * if paper { 2 } else { 1 }, nv) + 2 * nv,
+            word,
+        ),
     }
 }
 
