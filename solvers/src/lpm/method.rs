@@ -69,7 +69,7 @@ impl LpmMethod {
         let cfg = self.config_for(problem, tolerance);
         let lpm = CpuLpm::<T>::new(&problem.medium.cast(), &cfg)?;
         let setup_seconds = setup.elapsed().as_secs_f64();
-        let s = lpm.solve(&BoundaryLight::none(&lpm.dirs), |p, r| observer(p, r))?;
+        let s = lpm.solve(&BoundaryLight::none(&lpm.dirs), observer)?;
         let first = s.tallies.first().map_or(f64::NAN, |t| t.unshot);
         let last = s.tallies.last().map_or(f64::NAN, |t| t.unshot / first);
         let sum = |f: fn(&super::OrderTally) -> f64| s.tallies.iter().map(f).sum::<f64>();
