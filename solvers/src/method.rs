@@ -15,7 +15,8 @@
 //!
 //! ## Names
 //! A method is named `family[:variant]`, case-insensitive: `cda`, `fld` (= `fld:lp`, the
-//! paper's Levermore–Pomraning limiter), `fld:<limiter>`, `lbm`. [`parse`] turns a name
+//! paper's Levermore–Pomraning limiter), `fld:<limiter>`, `lbm`, each with an anisotropy
+//! variant `:paper` (the default, not printed) or `:similarity` ([`AnisotropyScaling`]). [`parse`] turns a name
 //! into a method with the family's defaults; [`parse_with`] also takes named numeric
 //! parameters (`omega=1.5`), each family listing those it accepts
 //! ([`MethodFamily::params`]); an unknown name or parameter is a typed
@@ -264,12 +265,14 @@ impl Capabilities {
     }
 }
 
-/// How a method that scatters isotropically uses σs under an anisotropic phase function
-/// (issue 12, item 2).
+/// How a diffusion-type method (CDA, FLD, LBM) treats an anisotropic phase function
+/// (issue 12, item 2): `paper` (its paper's use) or `similarity` (a spec suffix, e.g.
+/// `fld:lp:similarity`, `lbm:similarity`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AnisotropyScaling {
-    /// The papers' use: σs as given, scattered isotropically (the phase function is ignored).
+    /// The papers' use of σs as given: CDA and FLD scatter isotropically (the phase function
+    /// is ignored); LBM scatters with the lattice's Henyey–Greenstein kernel (LB Section 4).
     #[default]
     Paper,
     /// The similarity (transport) scaling σs' = (1 − g)σs, σt' = σa + σs' with isotropic

@@ -544,4 +544,12 @@ fn the_plan_names_the_anisotropy_variant_and_warns_on_strong_anisotropy() {
     assert!(
         s.explain().contains("fld:lp:similarity") && s.explain().contains("similarity scaling")
     );
+    // LBM: its paper variant scatters with the lattice HG kernel, warned about the same way.
+    let l = with("lbm", 0.9);
+    assert_eq!(l.warnings.len(), 1, "{}", l.explain());
+    assert!(l.explain().contains("lattice") && l.explain().contains("`paper`"));
+    assert!(with("lbm", 0.4).warnings.is_empty());
+    let ls = with("lbm:similarity", 0.9);
+    assert!(ls.warnings.is_empty(), "{}", ls.explain());
+    assert!(ls.explain().contains("lbm:similarity") && ls.explain().contains("similarity scaling"));
 }

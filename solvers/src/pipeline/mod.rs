@@ -30,9 +30,11 @@
 //! (power per area per steradian), row-major, top-left first.
 //!
 //! **Anisotropy.** Single scattering sees the phase function. The multiple-scattering pass
-//! sees it only if its method says so ([`crate::method::Capabilities::anisotropic`]: LBM);
-//! CDA and FLD scatter isotropically with the medium as given (no similarity scaling), as in
-//! the paper. The plan's `diffusion_solve` records which.
+//! sees it only if its method says so ([`crate::method::Capabilities::anisotropic`]: LBM's
+//! paper variant, on the lattice); CDA and FLD scatter isotropically with the medium as given,
+//! as in the paper, and every one of the three has the similarity variant `:similarity`
+//! (σs' = (1 − g)σs, [`crate::method::AnisotropyScaling`]). The plan's `diffusion_solve`
+//! records which variant ran, and the plan warns when `paper` runs with |g| > 0.5.
 
 pub mod bake;
 pub mod geometry;
@@ -323,9 +325,14 @@ pub fn plan_channels(
         && config.method.anisotropy() == Some(crate::method::AnisotropyScaling::Paper)
         && g.abs() > 0.5
     {
+        let what = if config.method.capabilities().anisotropic {
+            "scatters with the lattice's Henyey–Greenstein kernel (the paper's variant `paper`), \
+             whose discrete mean cosine overshoots g on D3Q19 for |g| > 0.5"
+        } else {
+            "scatters isotropically with σs as given (the paper's variant `paper`)"
+        };
         plan.warnings.push(format!(
-            "{} scatters isotropically with σs as given (the paper's variant) under g = {g}; \
-             the variant `:similarity` uses σs' = (1 − g)σs",
+            "{} {what} under g = {g}; the variant `:similarity` uses σs' = (1 − g)σs",
             config.method.name()
         ));
     }
