@@ -16,9 +16,9 @@
 //! ## Names
 //! A method is named `family[:variant]`, case-insensitive: `cda`, `fld` (= `fld:lp`, the
 //! paper's Levermore–Pomraning limiter), `fld:<limiter>`, `lbm`, each with an anisotropy
-//! variant `:paper` (the default, not printed) or `:similarity` ([`AnisotropyScaling`]). [`parse`] turns a name
-//! into a method with the family's defaults; [`parse_with`] also takes named numeric
-//! parameters (`omega=1.5`), each family listing those it accepts
+//! variant `:paper` (the default, not printed) or `:similarity` ([`AnisotropyScaling`]).
+//! [`parse`] turns a name into a method with the family's defaults; [`parse_with`] also
+//! takes named numeric parameters (`omega=1.5`), each family listing those it accepts
 //! ([`MethodFamily::params`]); an unknown name or parameter is a typed
 //! [`SolverError::UnknownName`] that lists what exists.
 //!
@@ -276,7 +276,9 @@ pub enum AnisotropyScaling {
     #[default]
     Paper,
     /// The similarity (transport) scaling σs' = (1 − g)σs, σt' = σa + σs' with isotropic
-    /// scattering; the source q is unchanged.
+    /// scattering. A method scales the medium of its [`Problem`] and takes its source q as
+    /// given; the pipeline gives it the δ-scaled source, its lights baked through the scaled
+    /// medium and scattered at σs' (`q_ri = σs'·L_ri'`, see [`crate::pipeline`]).
     Similarity,
 }
 
