@@ -14,7 +14,7 @@
 //! strongly forward-peaked phase function: its discrete mean cosine Σᵢ Sᵢⱼ nᵢ·nⱼ is below g
 //! (measured in `the_lattice_kernel_under_resolves_strong_anisotropy`), which is why the plan
 //! warns when `paper` runs with |g| > 0.5. Which variant is closer to the path tracer is
-//! measured in `results/accuracy_hg` (see the `lbm` module docs for the numbers and the default).
+//! measured in `results/accuracy_hg` (the numbers and the default: the `lbm` module docs).
 //!
 //! **Tolerance.** It stops when the relative change of the total lattice density per step is
 //! below [`Tolerance::rel`] × 10⁻² (the diffusion default 10⁻⁴ gives 10⁻⁶): a per-step change
