@@ -9,8 +9,9 @@ use crate::Real;
 #[inline(always)]
 pub fn hg<T: Real>(mu: T, g: T) -> T {
     let one = T::one();
-    let d = one + g * g - (g + g) * mu;
-    // (1 − g)(1 + g), not 1 − g²: no cancellation as g → 1.
+    // 1 + g² − 2gμ written as (1 − g)² + 2g(1 − μ), and 1 − g² as (1 − g)(1 + g): no
+    // cancellation as g, μ → 1 (in f32 the expanded form gives d ≤ 0 at g = 1 − 10⁻⁴, μ = 1).
+    let d = (one - g) * (one - g) + (g + g) * (one - mu);
     (one - g) * (one + g) / (T::c(4.0 * std::f64::consts::PI) * d * d.sqrt())
 }
 

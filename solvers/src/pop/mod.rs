@@ -1,12 +1,14 @@
 //! DOCS_PLACEHOLDER
 
 pub mod cpu;
+pub mod env;
 pub mod grid;
 pub mod kernel;
 #[cfg(test)]
 mod tests;
 
 pub use cpu::{CpuPop, Ledger};
+pub use env::{Prefilter, environment_ordinates, fibonacci};
 pub use grid::{PropagationGrid, frame};
 pub use kernel::{Fractions, cumulative, decay, fractions, hg};
 

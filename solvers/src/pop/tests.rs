@@ -888,3 +888,81 @@ fn t21_convergence_in_iterations() {
     assert!(ok, "\n{report}");
     eprintln!("{report}");
 }
+
+// ---------------------------------------------------------------- T11, T22: environment
+
+fn flux(ords: &[Ordinate]) -> [f64; 3] {
+    let mut f = [0.0; 3];
+    for o in ords {
+        for k in 0..3 {
+            f[k] += o.irradiance * o.anisotropy * o.direction[k];
+        }
+    }
+    f
+}
+
+#[test]
+fn t11_environment_ordinates_conserve_energy_and_first_moment() {
+    let four_pi = 4.0 * std::f64::consts::PI;
+    for n in [8, 27, 64, 125, 216] {
+        let ords = environment_ordinates(|_| 2.0, n, Prefilter::Voronoi, 256).unwrap();
+        let e: f64 = ords.iter().map(|o| o.irradiance).sum();
+        assert!((e - 2.0 * four_pi).abs() <= 1e-12 * e, "N {n}: Σ E = {e}");
+        let f = flux(&ords);
+        assert!(f.iter().all(|v| v.abs() <= 1e-12 * e), "N {n}: Σ E a d = {f:?}");
+        for o in &ords {
+            o.validate().unwrap();
+        }
+        if n >= 27 {
+            let cap = 1.0 - 1.0 / n as f64;
+            for o in &ords {
+                assert!((o.anisotropy - cap).abs() <= 0.02 * cap, "N {n}: a = {} vs cap {cap}", o.anisotropy);
+            }
+        }
+        let heur = environment_ordinates(|_| 2.0, n, Prefilter::Heuristic { beta: 1.0 }, 256).unwrap();
+        let mean_a = heur.iter().map(|o| o.anisotropy).sum::<f64>() / n as f64;
+        assert!((mean_a - (1.0 - 1.0 / n as f64)).abs() <= 1e-12, "N {n}: heuristic mean a {mean_a}");
+    }
+    // A gradient L = 1 + ½ω_z (ω towards the source): light travels towards −z on balance,
+    // ∫ L ω dω = (0, 0, 2π/3); the ordinates carry −that (piecewise-constant map, O(h²)).
+    let ords = environment_ordinates(|w| 1.0 + 0.5 * w[2], 64, Prefilter::Voronoi, 256).unwrap();
+    let f = flux(&ords);
+    let want = -2.0 * std::f64::consts::PI / 3.0;
+    assert!(f[0].abs() < 1e-4 && f[1].abs() < 1e-4 && (f[2] - want).abs() < 1e-4 * want.abs(), "{f:?}");
+    let none = environment_ordinates(|w| 1.0 + 0.5 * w[2], 64, Prefilter::None, 256).unwrap();
+    assert!(none.iter().all(|o| o.anisotropy == 1.0));
+    // Typed errors.
+    assert!(environment_ordinates(|_| 1.0, 0, Prefilter::Voronoi, 64).is_err());
+    assert!(environment_ordinates(|_| 1.0, 8, Prefilter::Heuristic { beta: 0.0 }, 64).is_err());
+    assert!(environment_ordinates(|_| -1.0, 8, Prefilter::Voronoi, 64).is_err());
+}
+
+/// T22: constant environment on a sphere; the fluence with N ordinates approaches N = 216
+/// monotonically, the last step (125 → 216) below 2 %.
+#[test]
+fn t22_convergence_in_ordinates() {
+    let n = 12;
+    let grid = Grid::cube(n, 1.0).unwrap();
+    let ss: Vec<f64> = grid.sample(|p| {
+        let r2 = (p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2) + (p[2] - 0.5).powi(2);
+        if r2 <= 0.25 { 4.0 } else { 0.0 }
+    });
+    let sa = ss.iter().map(|s| 0.1 * s).collect();
+    let m = PopMedium { grid, sigma_s: vec![ss], sigma_a: vec![sa], g: vec![0.9] };
+    let cfg = PopConfig::fixed::<f32>(n, 3 * n);
+    let phi = |count| {
+        let ords = environment_ordinates(|_| 1.0, count, Prefilter::Voronoi, 256).unwrap();
+        solve::<f32>(&m, &ords, &cfg).unwrap().fluence_on(&grid).remove(0)
+    };
+    let reference = phi(216);
+    let norm = reference.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let errs: Vec<f64> = [8, 27, 64, 125]
+        .map(|c| {
+            let p = phi(c);
+            p.iter().zip(&reference).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt() / norm
+        })
+        .to_vec();
+    eprintln!("T22 ‖φ_N − φ_216‖/‖φ_216‖ for N = 8, 27, 64, 125: {errs:?}");
+    assert!(errs.windows(2).all(|w| w[1] < w[0]), "not monotone: {errs:?}");
+    assert!(errs[3] < 0.02, "last step {:.4} ≥ 2 %", errs[3]);
+}
