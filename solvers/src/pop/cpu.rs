@@ -329,16 +329,18 @@ impl<T: Real> CpuPop<T> {
                         let cell = i + n * (j + n * k);
                         for ch in 0..nc {
                             let slot = cell * nc + ch;
+                            let l = state[slot * S].f();
+                            if l == 0.0 {
+                                // Nothing to send: the gather multiplies the (stale, finite)
+                                // fractions by L = 0.
+                                continue;
+                            }
                             let a = state[slot * S + 1];
                             let f: Fractions<T> = fractions(a);
                             let o = ((i + n * j) * nc + ch) * 3;
                             fr[o] = f.front;
                             fr[o + 1] = f.side;
                             fr[o + 2] = f.back;
-                            let l = state[slot * S].f();
-                            if l == 0.0 {
-                                continue;
-                            }
                             let (front, side, back) = (f.front.f(), f.side.f(), f.back.f());
                             let lk = &links[slot * K..][..K];
                             let ghost = lk[6].f();

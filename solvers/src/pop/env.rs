@@ -47,7 +47,11 @@ fn texel_moments(t0: f64, t1: f64, p0: f64, p1: f64) -> (f64, [f64; 3]) {
     let sc = (t1.sin().powi(2) - t0.sin().powi(2)) / 2.0;
     (
         omega,
-        [s2 * (p1.sin() - p0.sin()), s2 * (p0.cos() - p1.cos()), sc * (p1 - p0)],
+        [
+            s2 * (p1.sin() - p0.sin()),
+            s2 * (p0.cos() - p1.cos()),
+            sc * (p1 - p0),
+        ],
     )
 }
 
@@ -129,9 +133,10 @@ pub fn environment_ordinates(
         // The ordinate travels away from where the light comes from: direction −ω.
         let (direction, anisotropy) = match prefilter {
             Prefilter::None => (dirs[i].map(|v| -v), 1.0),
-            Prefilter::Heuristic { beta } => {
-                (dirs[i].map(|v| -v), (1.0 - area[i] / (4.0 * PI)).max(0.0).powf(beta))
-            }
+            Prefilter::Heuristic { beta } => (
+                dirs[i].map(|v| -v),
+                (1.0 - area[i] / (4.0 * PI)).max(0.0).powf(beta),
+            ),
             Prefilter::Voronoi => {
                 let m = moment[i];
                 let len = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
