@@ -106,6 +106,42 @@ pub mod bandwidth {
         gbs
     }
 
+    /// The size of the largest CPU cache in bytes, read from Linux's
+    /// `/sys/devices/system/cpu/cpu0/cache/index*/size` (`None` where it cannot be read).
+    pub fn last_level_cache_bytes() -> Option<usize> {
+        let dir = std::fs::read_dir("/sys/devices/system/cpu/cpu0/cache").ok()?;
+        dir.filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().starts_with("index"))
+            .filter_map(|e| std::fs::read_to_string(e.path().join("size")).ok())
+            .filter_map(|t| parse_cache_size(t.trim()))
+            .max()
+    }
+
+    /// Parses a sysfs cache size such as `32768K` or `32M` (plain digits: bytes).
+    pub fn parse_cache_size(text: &str) -> Option<usize> {
+        let (digits, scale) = match text.chars().last()? {
+            'K' | 'k' => (&text[..text.len() - 1], 1 << 10),
+            'M' | 'm' => (&text[..text.len() - 1], 1 << 20),
+            'G' | 'g' => (&text[..text.len() - 1], 1 << 30),
+            _ => (text, 1),
+        };
+        digits.parse::<usize>().ok().map(|d| d * scale)
+    }
+
+    /// Fallback for [`stream_rule_len`] where the cache size cannot be read: 128 MiB, four
+    /// times the largest L3 this machine kind has come with (32 and 105 MiB seen).
+    pub const FALLBACK_CACHE_BYTES: usize = 128 << 20;
+
+    /// Elements per array by STREAM's sizing rule: each array at least four times the
+    /// largest cache ([`last_level_cache_bytes`], else [`FALLBACK_CACHE_BYTES`]), so the
+    /// probe measures main memory and not the cache. A probe over a solver's own footprint
+    /// ([`len_for_total_bytes`]) is partly served by the cache when that footprint is near
+    /// the cache size (a 128³ `f32` step: 42 MB against a 32 MiB L3), and then overstates
+    /// what the memory system delivers.
+    pub fn stream_rule_len() -> usize {
+        4 * last_level_cache_bytes().unwrap_or(FALLBACK_CACHE_BYTES) / F32_BYTES
+    }
+
     /// Elements per array such that `arrays` `f32` arrays together hold about `total_bytes`
     /// bytes (at least 1 element), e.g. to run [`triad_gbs`] (3 arrays) or [`copy_gbs`]
     /// (2 arrays) over the same footprint as a solver's state.
@@ -280,5 +316,15 @@ mod tests {
         assert_eq!(calls, 1);
         let sleep = |ms| move || std::thread::sleep(std::time::Duration::from_millis(ms));
         assert!(median_seconds(2, sleep(2)) >= 0.002);
+    }
+
+    #[test]
+    fn sysfs_cache_sizes_parse() {
+        use super::bandwidth::parse_cache_size;
+        assert_eq!(parse_cache_size("32768K"), Some(32 << 20));
+        assert_eq!(parse_cache_size("105M"), Some(105 << 20));
+        assert_eq!(parse_cache_size("512"), Some(512));
+        assert_eq!(parse_cache_size("K"), None);
+        assert_eq!(parse_cache_size("x1K"), None);
     }
 }

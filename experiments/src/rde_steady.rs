@@ -15,15 +15,21 @@
 //!   fraction (mean over the structure relative to the source voxel) against iterations, for
 //!   Perona–Malik (σ = 0.1, clamped source) and the RDE (β = max(exp(−(‖∇V‖/σ)²), 10⁻³),
 //!   Ka∆ = 1 − β, the thesis's Fig 4.4 caption, or (1 − α)/(3β) at α = 0.99).
+//! * `thesis_style_gap.png`, `thesis_style_tube.png`: the last checkpoint of each containment run drawn as the thesis
+//!   draws it (`solvers::rde::dvr`, thesis Eqs 1.12–1.14): the phantom's data through a
+//!   transfer function, the diffused energy in green on a 4-decade log scale; the gap
+//!   phantom seen along z, the tube along x. An illustration only.
 
 use crate::common::{CommonArgs, Ctx};
 use crate::cost::Estimate;
 use crate::experiment::{BackendSupport, Experiment, Promise};
+use crate::images::{ColourMap, Tile, write_strip};
 use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 use anyhow::{Context, Result};
 use serde::Serialize;
 use solvers::fld::{self, FldConfig};
+use solvers::rde::dvr::{self, ThesisStyle};
 use solvers::rde::pm::{Conductance, PeronaMalik, Phantom, PmConfig, fill_fraction, leak_fraction};
 use solvers::rde::{BoundaryCondition, Coefficients, CpuRde, Operator, RdeConfig, TimeStep};
 use solvers::{Backend, Grid, Medium, Precision};
@@ -144,12 +150,14 @@ fn cda(m: &Medium<f64>, tol: f64) -> Result<(Vec<f64>, usize, f64, bool)> {
 /// Ka∆ as a function of β on a phantom.
 type KaMap = fn(f64) -> f64;
 
+/// Runs the containment methods on `ph`, appending rows at each checkpoint; returns each
+/// method's field at the last checkpoint (for the thesis-style images).
 fn containment(
     rows: &mut Vec<ContainRow>,
     name: &str,
     ph: &Phantom,
     checkpoints: &[usize],
-) -> Result<()> {
+) -> Result<Vec<(String, Vec<f64>)>> {
     // Perona–Malik, clamped source.
     let cfg = PmConfig {
         conductance: Conductance::Exponential,
@@ -172,6 +180,7 @@ fn containment(
             fill_fraction: fill_fraction(pm.energy(), &ph.inside, 1.0),
         });
     }
+    let mut last = vec![("Perona–Malik σ = 0.1".to_string(), pm.energy().to_vec())];
     // RDE, conservative, Neumann walls, gradient-mapped β.
     let beta = ph.gradient_beta(Conductance::Exponential, 0.1, 1e-3);
     let variants: [(&str, KaMap); 2] = [
@@ -206,6 +215,68 @@ fn containment(
             prev = c;
             phi0 = Some(s.phi);
         }
+        if let Some(phi) = phi0 {
+            last.push((label.to_string(), phi));
+        }
+    }
+    Ok(last)
+}
+
+/// One phantom's thesis-style strip: file suffix, phantom, ray axis, K_a∆ at data 1,
+/// emission gain per voxel, and each method's last field.
+struct StyleView<'a> {
+    short: &'a str,
+    ph: &'a Phantom,
+    axis: usize,
+    opacity: f64,
+    gain: f64,
+    fields: &'a [(String, Vec<f64>)],
+}
+
+/// Thesis-style strips, one per phantom (`thesis_style_<short>.png`): one tile per method at
+/// the last checkpoint.
+fn thesis_style(ctx: &Ctx, views: &[StyleView<'_>], iterations: usize) -> Result<()> {
+    for &StyleView {
+        short,
+        ph,
+        axis,
+        opacity,
+        gain,
+        fields,
+    } in views
+    {
+        let style = ThesisStyle {
+            axis,
+            opacity,
+            gain,
+            ..ThesisStyle::default()
+        };
+        let mut images = Vec::new();
+        for (label, phi) in fields {
+            let phi: Vec<f64> = phi.iter().map(|&x| x.max(0.0)).collect();
+            let img = dvr::render(&ph.grid, &ph.data, &phi, &style)
+                .with_context(|| format!("thesis-style image of {label} on the {short}"))?;
+            images.push((format!("{label}\n{iterations} iterations"), img));
+        }
+        let Some((w, h)) = images.first().map(|(_, i)| (i.w, i.h)) else {
+            continue;
+        };
+        let tiles: Vec<Tile<'_>> = images
+            .iter()
+            .map(|(label, i)| {
+                Tile::new(
+                    i.rgb.iter().map(|c| c.as_slice()).collect(),
+                    ColourMap::Radiance { white: 1.0 },
+                )
+                .labelled(label.clone())
+            })
+            .collect();
+        write_strip(
+            &ctx.path(&format!("thesis_style_{short}.png")),
+            w,
+            h,
+            &tiles,
+        )?;
     }
     Ok(())
 }
@@ -307,15 +378,39 @@ fn run_in(ctx: &mut Ctx, _args: &Args) -> Result<()> {
 
     let mut rows = Vec::new();
     let gap = Phantom::gap_edge(n2, 1)?;
-    containment(
+    let gap_last = containment(
         &mut rows,
         "2D wall with a one-voxel gap",
         &gap,
         &checkpoints,
     )?;
     let tube = Phantom::tube(n3, n3 as f64 / 8.0)?;
-    containment(&mut rows, "3D tube", &tube, &checkpoints)?;
+    let tube_last = containment(&mut rows, "3D tube", &tube, &checkpoints)?;
     ctx.csv("containment.csv", &rows)?;
+    // The gap phantom is 3 voxels thick (opaque wall: K_a∆ = 1, emission gain 0.12 per
+    // voxel); the tube is seen across its diameter (K_a∆ = 0.15, gain 0.25 per voxel).
+    thesis_style(
+        ctx,
+        &[
+            StyleView {
+                short: "gap",
+                ph: &gap,
+                axis: 2,
+                opacity: 1.0,
+                gain: 0.12,
+                fields: &gap_last,
+            },
+            StyleView {
+                short: "tube",
+                ph: &tube,
+                axis: 0,
+                opacity: 0.15,
+                gain: 0.25,
+                fields: &tube_last,
+            },
+        ],
+        *checkpoints.last().unwrap_or(&0),
+    )?;
     let mut series = Vec::new();
     let methods: Vec<String> = {
         let mut v: Vec<String> = rows.iter().map(|r| r.method.clone()).collect();
@@ -403,6 +498,8 @@ impl Experiment for RdeSteady {
                 ],
             ),
             Promise::file("containment.png"),
+            Promise::file("thesis_style_gap.png"),
+            Promise::file("thesis_style_tube.png"),
         ]
     }
 
@@ -476,6 +573,12 @@ impl Experiment for RdeSteady {
         ));
         out.push('\n');
         out.push_str(&s.png("containment.png"));
+        out.push_str(
+            "\nThe same runs drawn as the thesis draws them (illustration only; thesis \
+             Eqs 1.12–1.14: data through a transfer function, diffused energy in green on \
+             a 4-decade log scale; the gap seen along z, the tube along x):\n\n",
+        );
+        out.push_str(&s.pngs(["thesis_style_gap.png", "thesis_style_tube.png"]));
         Ok(out)
     }
 }

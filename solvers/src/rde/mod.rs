@@ -43,7 +43,8 @@
 //!   ([`RdeTrace::light_path`] = n·c∆t), the bounds and counts of the medium.
 //! * [`method::RdeMethod`]: the steady RDE as a registered method (`rde[:expanded|verbatim]`).
 //! * [`pm`]: Perona–Malik selective diffusion (thesis Eqs 3.1–3.5) and the containment
-//!   phantoms; [`p1`], [`fe`]: the thesis's P1 and FE schemes as negative controls.
+//!   phantoms; [`p1`], [`fe`]: the thesis's P1 and FE schemes as negative controls;
+//!   [`dvr`]: thesis-style images (thesis Eqs 1.12–1.14; illustration only).
 //! * Experiments `rde_stability` (thesis Fig 4.1 with the measured critical r) and
 //!   `rde_steady` (steady state vs CDA, time to tolerance vs CDA-SOR, phantom containment);
 //!   bench `benches/benches/rde.rs` (one FTCS step against the triad probe).
@@ -156,6 +157,7 @@
 //!   Qe, N/S swapped between Ch. 3 and Ch. 4 (Ch. 4's N = (i + 1, j, k) is used), and φe
 //!   "incorporating c∆t" (here q, with the c∆t = r∆ factor applied by the step).
 pub mod cpu;
+pub mod dvr;
 pub mod fe;
 pub mod gpu;
 pub mod method;

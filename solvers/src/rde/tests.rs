@@ -1662,3 +1662,109 @@ mod pm_tests {
         assert!(PeronaMalik::<f64>::new(ph.grid, &ph.data, &[[8, 0, 0]], &base).is_err());
     }
 }
+
+/// Thesis-style images (`dvr`): the closed forms of thesis Eqs 1.12–1.14 on axis columns.
+mod dvr_images {
+    use super::super::dvr::{ThesisStyle, render};
+    use crate::{Grid, SolverError};
+
+    fn style(axis: usize, opacity: f64, gain: f64) -> ThesisStyle {
+        ThesisStyle {
+            axis,
+            opacity,
+            low: [0.2, 0.4, 0.6],
+            high: [1.0, 0.5, 0.0],
+            gain,
+            log_decades: None,
+        }
+    }
+
+    /// Uniform data S along every column of n voxels: α_out = 1 − (1 − α)ⁿ (Eq 1.14's
+    /// recursion summed) and C = c(S)·α_out (Eq 1.13), for each ray axis.
+    #[test]
+    fn dvr_uniform_column_closed_form() {
+        let grid = Grid::new([5, 7, 9], 1.0).unwrap();
+        let s = 0.6;
+        let data = vec![s; grid.len()];
+        let phi = vec![0.0; grid.len()];
+        for axis in 0..3 {
+            let st = style(axis, 0.3, 1.0);
+            let img = render(&grid, &data, &phi, &st).unwrap();
+            let n = grid.n[axis] as i32;
+            let a1 = 1.0 - (-0.3 * s).exp();
+            let a_out = 1.0 - (1.0 - a1).powi(n);
+            assert_eq!(img.w * img.h, grid.len() / grid.n[axis]);
+            for p in 0..img.w * img.h {
+                assert!((img.alpha[p] - a_out).abs() < 1e-14, "axis {axis}");
+                for ch in 0..3 {
+                    let tf = st.low[ch] + (st.high[ch] - st.low[ch]) * s;
+                    assert!((img.rgb[ch][p] - tf * a_out).abs() < 1e-14);
+                }
+            }
+        }
+    }
+
+    /// One emitting voxel behind one absorbing voxel: green = (1 − α_front)·Q_e∆x; in a
+    /// transparent volume the emission of a column sums (Eq 1.12 with τ = 1).
+    #[test]
+    fn dvr_emission_attenuated_and_summed() {
+        let grid = Grid::new([3, 3, 3], 1.0).unwrap();
+        let mut data = vec![0.0; grid.len()];
+        let mut phi = vec![0.0; grid.len()];
+        data[grid.index(0, 1, 1)] = 1.0;
+        phi[grid.index(2, 1, 1)] = 2.0;
+        phi[grid.index(1, 0, 0)] = 1.0;
+        phi[grid.index(2, 0, 0)] = 0.5;
+        let st = style(0, 0.7, 0.8);
+        let img = render(&grid, &data, &phi, &st).unwrap();
+        let front = 1.0 - (-0.7f64).exp();
+        // Pixel (y = 1, z = 1): the absorber then the peak emitter.
+        let p = img.w + 1;
+        let expect = front * st.high[1] + (1.0 - front) * 0.8;
+        assert!((img.rgb[1][p] - expect).abs() < 1e-14);
+        // Pixel (0, 0): transparent, emitters at φ/max = 0.5 and 0.25.
+        assert!((img.rgb[1][0] - 0.8 * 0.75).abs() < 1e-14);
+        assert_eq!(img.rgb[0][0], 0.0);
+        assert_eq!(img.alpha[0], 0.0);
+        // Logarithmic weight over 2 decades: 1 + log10(x)/2.
+        let log = ThesisStyle {
+            log_decades: Some(2.0),
+            ..st
+        };
+        let img = render(&grid, &data, &phi, &log).unwrap();
+        let w = |x: f64| 1.0 + x.log10() / 2.0;
+        assert!((img.rgb[1][0] - 0.8 * (w(0.5) + w(0.25))).abs() < 1e-14);
+    }
+
+    #[test]
+    fn dvr_bad_input_names_the_parameter() {
+        let grid = Grid::new([3, 3, 3], 1.0).unwrap();
+        let ok = vec![0.5; grid.len()];
+        let st = ThesisStyle::default();
+        let name = |r: Result<_, SolverError>| match r {
+            Err(SolverError::BadParameter { name, .. }) => name.to_string(),
+            Err(SolverError::FieldSize { field, .. }) => field.to_string(),
+            Err(SolverError::FieldValue { field, .. }) => field.to_string(),
+            other => format!("{other:?}"),
+        };
+        assert_eq!(name(render(&grid, &ok[1..], &ok, &st)), "data");
+        assert_eq!(name(render(&grid, &ok, &ok[1..], &st)), "phi");
+        let mut bad = ok.clone();
+        bad[4] = 1.5;
+        assert_eq!(name(render(&grid, &bad, &ok, &st)), "data");
+        bad[4] = f64::NAN;
+        assert_eq!(name(render(&grid, &ok, &bad, &st)), "phi");
+        let axis = ThesisStyle { axis: 3, ..st };
+        assert_eq!(name(render(&grid, &ok, &ok, &axis)), "axis");
+        let op = ThesisStyle {
+            opacity: -1.0,
+            ..st
+        };
+        assert_eq!(name(render(&grid, &ok, &ok, &op)), "opacity");
+        let dec = ThesisStyle {
+            log_decades: Some(0.0),
+            ..st
+        };
+        assert_eq!(name(render(&grid, &ok, &ok, &dec)), "log_decades");
+    }
+}
