@@ -18,7 +18,7 @@
 //!
 //! Without `--bench` (`cargo test --benches`) a smoke run at 8³ × 8 ordinates × 2 iterations.
 
-use benches::bandwidth::{copy_gbs, len_for_total_bytes, triad_gbs};
+use benches::bandwidth::{copy_gbs, len_for_total_bytes, stream_rule_len, triad_gbs};
 use benches::median_seconds;
 use criterion::{Criterion, Throughput};
 use rayon::prelude::*;
@@ -130,6 +130,9 @@ fn bench<T: Real>(c: &mut Criterion, s: &Setting, summary: bool, rows: &mut Vec<
         )
     };
     let (t0, c0) = probe();
+    // The state of 64 grids of 20³ is cache-sized; the STREAM-rule triad (arrays ≥ 4× the
+    // largest cache) is the main-memory figure.
+    let stream = triad_gbs(stream_rule_len(), PROBE_REPS);
     let seconds = median_seconds(SUMMARY_RUNS, || propagate(&grids, &ords, &cfg));
     let solve_seconds =
         median_seconds(3, || pop::solve::<T>(&m, &ords, &cfg).map(|s| s.runs.len()));
@@ -138,7 +141,7 @@ fn bench<T: Real>(c: &mut Criterion, s: &Setting, summary: bool, rows: &mut Vec<
     let gbs = bytes_per_step as f64 * s.iterations as f64 / seconds / 1e9;
     let (triad, copy) = (t0.max(t1), c0.max(c1));
     println!(
-        "summary: pop {} {}x{}^3x{}: propagation {:.1} ms ({:.3e} RGB cell-updates/s), solve {:.1} ms; {:.2} GB/s = {:.3} of triad {:.2}, {:.3} of copy {:.2} GB/s",
+        "summary: pop {} {}x{}^3x{}: propagation {:.1} ms ({:.3e} RGB cell-updates/s), solve {:.1} ms; {:.2} GB/s = {:.3} of triad {:.2}, {:.3} of copy {:.2}, {:.3} of STREAM-rule triad {:.2} GB/s",
         T::NAME,
         s.ordinates,
         s.n,
@@ -150,10 +153,12 @@ fn bench<T: Real>(c: &mut Criterion, s: &Setting, summary: bool, rows: &mut Vec<
         gbs / triad,
         triad,
         gbs / copy,
-        copy
+        copy,
+        gbs / stream,
+        stream
     );
     rows.push(format!(
-        "cpu,{},{},{},{},{},{:.4},{:.4},{:.4e},{:.3},{:.3},{:.3},{:.4},{:.4}",
+        "cpu,{},{},{},{},{},{:.4},{:.4},{:.4e},{:.3},{:.3},{:.3},{:.3},{:.4},{:.4},{:.4}",
         rayon::current_num_threads(),
         T::NAME,
         s.ordinates,
@@ -165,8 +170,10 @@ fn bench<T: Real>(c: &mut Criterion, s: &Setting, summary: bool, rows: &mut Vec<
         gbs,
         triad,
         copy,
+        stream,
         gbs / triad,
-        gbs / copy
+        gbs / copy,
+        gbs / stream
     ));
 }
 
@@ -199,7 +206,7 @@ fn main() {
     if !bench_mode || rows.is_empty() {
         return;
     }
-    let header = "backend,threads,precision,ordinates,n,iterations,propagation_ms,solve_ms,cell_updates_per_s,effective_gbs,triad_gbs,copy_gbs,ratio_triad,ratio_copy";
+    let header = "backend,threads,precision,ordinates,n,iterations,propagation_ms,solve_ms,cell_updates_per_s,effective_gbs,triad_gbs,copy_gbs,stream_triad_gbs,ratio_triad,ratio_copy,ratio_stream_triad";
     let mut text = format!("{header}\n");
     println!("\n{header}");
     for r in &rows {
