@@ -29,11 +29,13 @@
 //!   a fixed M (the paper: 10–20).
 //!
 //! **Cost** (`benches/benches/pop.rs`, the Fig 14 setting: 64 ordinates × 20³ × 10
-//! iterations, RGB): first run on the 2 shared cores at load average 8.4 (other jobs):
-//! propagation 653 ms f32 / 607 ms f64 (7.8·10⁶ / 8.4·10⁶ RGB cell-updates/s), the whole
-//! solve with grid builds 870 / 716 ms; 0.04 (f32) and 0.13 (f64) of the same run's triad.
-//! Compute-bound (two square roots and divisions per cell and channel for the fractions,
-//! the six-term ledger); the issue's ≤ 0.5 s target is not shown on this loaded machine.
+//! iterations, RGB, `results/bench/pop.csv`), on the 2 cores shared with other jobs (load
+//! average 11 during the run): propagation 492 ms f32 (1.04·10⁷ RGB cell-updates/s, the
+//! issue's target of ≤ 0.5 s met by a hair on a loaded machine) and 620 ms f64
+//! (8.3·10⁶/s); the whole solve with grid builds and resampling 653 / 1215 ms. Effective
+//! 2.9 / 4.6 GB/s = 0.11 / 0.27 of the same run's STREAM-rule triad: compute-bound (two
+//! square roots and divisions per cell and channel for the fractions, the six-term ledger).
+//! Cells without light skip the fraction pass (a wavefront fills one slice per iteration).
 //!
 //! The isotropic residuum (Eqs 9–10), radial grids (Sec 6), the 2× merge with joint
 //! bilateral upsampling (Secs 4.4, 5.3), importance propagation (Sec 5.2) and the GPU

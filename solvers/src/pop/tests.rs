@@ -1144,3 +1144,31 @@ fn t18_f32_matches_f64() {
         "iterations to 1e-4: f64 {sa}, f32 {sb}"
     );
 }
+
+/// Eq 8 (D7, D8): in a pure absorber the beam keeps a = 1, so the accumulated view radiance
+/// is φ·f_hg(u, g) with the phase-convolved lobe and φ·f_hg(u, 1 − 10⁻⁴) with the literal
+/// one, u = d·w for an orthographic observer along w.
+#[test]
+fn eq8_accumulates_the_view_lobe() {
+    let n = 8;
+    let g = 0.7;
+    let m = cube(n, 0.0, 2.0, g);
+    let w = grid::normalise("w", [0.6, 0.0, 0.8]).unwrap();
+    for (eq8, lobe) in [(Eq8::PhaseConvolved, g), (Eq8::Literal, kernel::A_MAX_VIEW)] {
+        let cfg = PopConfig {
+            observer: Some(Observer::Direction(w)),
+            eq8,
+            ..PopConfig::new::<f64>(n)
+        };
+        let run = run_ordinate::<f64>(&m, &plus_x(), &cfg);
+        let want = hg(0.6, lobe);
+        for c in 0..run.grid.len() {
+            let (phi, lacc) = (run.acc[c * cpu::ACC], run.acc[c * cpu::ACC + 2]);
+            assert!(
+                (lacc - phi * want).abs() <= 1e-12 * phi * want,
+                "{eq8:?} cell {c}: {lacc} vs {}",
+                phi * want
+            );
+        }
+    }
+}
