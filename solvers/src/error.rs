@@ -148,10 +148,6 @@ pub enum SolverError {
     /// The requested combination of backend and precision does not exist.
     #[error("{0}")]
     Unsupported(String),
-    /// The solve's buffers would exceed the memory budget ([`crate::budget`]); refused
-    /// before anything is allocated.
-    #[error(transparent)]
-    Memory(#[from] crate::budget::TooLarge),
 }
 
 #[cfg(test)]

@@ -85,7 +85,7 @@
 //! * **D16 collect.** After each LPM (T holds the m² directions of one face).
 //! * **D2 accumulate.** I and U^{cur} accumulate; I = U⁰ + Σ_p U^p (T22, `t22_…`).
 //! * **Memory.** Every buffer is counted before allocation ([`memory_bytes`]); a grid beyond
-//!   the budget is a typed [`SolverError::Memory`] naming the grid (acceptance 5).
+//!   the budget is a typed [`SolverError::TooLarge`] naming the grid (acceptance 5).
 
 pub mod cpu;
 pub mod directions;

@@ -665,7 +665,7 @@ fn t20_hard_inputs_and_typed_errors() {
     let m = homogeneous([4, 4, 4], 0.1, 1.0, 0.5);
     let name = |cfg: LpmConfig| match CpuLpm::<f64>::new(&m, &cfg) {
         Err(SolverError::BadParameter { name, .. }) => name.to_string(),
-        Err(SolverError::Memory(e)) => e.what,
+        Err(SolverError::TooLarge(e)) => e.what,
         Err(e) => format!("other: {e}"),
         Ok(_) => "accepted".into(),
     };
@@ -730,7 +730,7 @@ fn t20_hard_inputs_and_typed_errors() {
     let needed = memory_bytes(&huge, &big, 4).total();
     assert!(matches!(
         big.check_budget(&huge, needed),
-        Err(SolverError::Memory(_))
+        Err(SolverError::TooLarge(_))
     ));
     let lpm = CpuLpm::<f64>::new(&m, &LpmConfig::default()).unwrap();
     assert!(matches!(
