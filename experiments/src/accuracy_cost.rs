@@ -26,7 +26,7 @@
 //! `meta.json`.
 
 use crate::common::{BackendArgs, CommonArgs, Ctx, list_item, progress};
-use crate::experiment::{BackendSupport, Experiment, Promise};
+use crate::experiment::{BackendSupport, Experiment, FigureRun, Promise};
 use crate::methods::Renderer;
 use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
@@ -113,6 +113,14 @@ pub struct Args {
     /// Override the camera resolution, `W,H` (default: the scene's; 24,24 with --quick).
     #[arg(long)]
     pub resolution: Option<String>,
+    /// Replace every scene's phase function by Henyey–Greenstein with each of these g, one
+    /// scene per value, named `<stem>_g<g>` (e.g. `shell_core_g0.9`); default: the scene's own.
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, allow_negative_numbers = true)]
+    pub g: Option<Vec<f64>>,
+    /// The grid methods' settings, `DS:TOL:PRECISION` each (e.g. `2:1e-3:f32`), comma-separated;
+    /// default the ladder of [`grid_settings`] (quick: `4:1e-3:f32,2:1e-3:f32`).
+    #[arg(long, value_delimiter = ',', value_parser = parse_grid_setting)]
+    pub grid: Option<Vec<Setting>>,
     /// Seed of the reference (the path tracer's points use seed + 1000).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -152,6 +160,8 @@ pub struct Point {
     pub error_multiple: f64,
     /// What else the method reports (iterations, passes).
     pub detail: String,
+    /// The scene's mean cosine g (0 for isotropic scattering).
+    pub g: f64,
 }
 
 /// A method setting.
@@ -212,11 +222,13 @@ impl From<Renderer> for MethodEntry {
 }
 
 impl MethodEntry {
-    /// Its settings (`quick` for CI-sized runs; `spp` is the path tracer's ladder).
-    pub fn settings(&self, quick: bool, spp: &[u32]) -> Vec<Setting> {
-        match self.renderer {
-            Renderer::PathTracer => pt_settings(quick, spp),
-            Renderer::Pipeline(_) => grid_settings(quick, spp),
+    /// Its settings (`quick` for CI-sized runs; `spp` is the path tracer's ladder; `grid`
+    /// replaces the grid methods' ladder).
+    pub fn settings(&self, quick: bool, spp: &[u32], grid: Option<&[Setting]>) -> Vec<Setting> {
+        match (&self.renderer, grid) {
+            (Renderer::PathTracer, _) => pt_settings(quick, spp),
+            (Renderer::Pipeline(_), Some(g)) => g.to_vec(),
+            (Renderer::Pipeline(_), None) => grid_settings(quick, spp),
         }
     }
 
@@ -284,14 +296,87 @@ fn grid_settings(quick: bool, _spp: &[u32]) -> Vec<Setting> {
         ]
     };
     list.iter()
-        .map(|&(d, t, p)| Setting {
-            label: format!("ds={d} tol={t:e} {}", if p == F32 { "f32" } else { "f64" }),
-            downsample: d,
-            tolerance: t,
-            precision: p,
-            spp: 0,
-        })
+        .map(|&(d, t, p)| grid_setting(d, t, p))
         .collect()
+}
+
+fn grid_setting(downsample: usize, tolerance: f64, precision: Precision) -> Setting {
+    Setting {
+        label: format!(
+            "ds={downsample} tol={tolerance:e} {}",
+            if precision == Precision::F32 {
+                "f32"
+            } else {
+                "f64"
+            }
+        ),
+        downsample,
+        tolerance,
+        precision,
+        spp: 0,
+    }
+}
+
+/// Parses one `--grid` item, `DS:TOL:PRECISION` (downsampling ≥ 1, tolerance finite and
+/// ≥ 0, `f32` or `f64`).
+pub fn parse_grid_setting(s: &str) -> std::result::Result<Setting, String> {
+    let parts: Vec<&str> = s.trim().split(':').map(str::trim).collect();
+    let [d, t, p] = parts.as_slice() else {
+        return Err(format!("`{s}`: expected DS:TOL:PRECISION, e.g. 2:1e-3:f32"));
+    };
+    let d: usize = d
+        .parse()
+        .ok()
+        .filter(|&d| d >= 1)
+        .ok_or_else(|| format!("`{s}`: the downsampling `{d}` must be an integer ≥ 1"))?;
+    let t: f64 = t
+        .parse()
+        .ok()
+        .filter(|t: &f64| t.is_finite() && *t >= 0.0)
+        .ok_or_else(|| format!("`{s}`: the tolerance `{t}` must be a number ≥ 0"))?;
+    let p = match p.to_ascii_lowercase().as_str() {
+        "f32" => Precision::F32,
+        "f64" => Precision::F64,
+        _ => return Err(format!("`{s}`: the precision `{p}` must be f32 or f64")),
+    };
+    Ok(grid_setting(d, t, p))
+}
+
+/// The scenes of `--g`: each scene once per g, with HG phase g, named `<name>_g<g>`, its
+/// effects recomputed; without `--g` the scenes as they are.
+pub fn with_phases(scenes: Vec<Prepared>, g: Option<&[f64]>) -> Result<Vec<Prepared>> {
+    let Some(gs) = g else {
+        return Ok(scenes);
+    };
+    if gs.is_empty() {
+        bail!("--g: no values given");
+    }
+    let mut out = Vec::new();
+    for sc in &scenes {
+        for &g in gs {
+            let phase = solvers::scene::Phase::HenyeyGreenstein { g };
+            phase.validate().with_context(|| format!("--g {g}"))?;
+            let mut channels = sc.channels.clone();
+            channels.iter_mut().for_each(|c| c.phase = phase);
+            let (_, effects) =
+                pipeline::effects_of(&channels, &sc.selection, &PipelineConfig::default())
+                    .with_context(|| format!("the effects of {} at g = {g}", sc.name))?;
+            out.push(Prepared {
+                name: phase_scene_name(&sc.name, g),
+                channels,
+                selection: sc.selection.clone(),
+                effects,
+                reference: Vec::new(),
+                reference_seconds: 0.0,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// The name of scene `stem` with its phase replaced by HG `g` (`--g`).
+pub fn phase_scene_name(stem: &str, g: f64) -> String {
+    format!("{stem}_g{g}")
 }
 
 fn run_pt(job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
@@ -590,14 +675,17 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     let backends = args.backend.open()?;
     let params = serde_json::json!({
         "scenes": scenes, "reference_spp": ref_spp, "spp": spp, "coarsen": coarsen,
-        "resolution": resolution, "seed": args.seed,
+        "resolution": resolution, "seed": args.seed, "g": args.g,
+        "grid": args.grid.as_ref().map(|v| v.iter().map(|s| s.label.clone()).collect::<Vec<_>>()),
         "methods": methods.iter().map(|m| m.name.clone()).collect::<Vec<_>>(),
         "targets": TARGETS,
     });
-    let mut prepared = scenes
+    let prepared = scenes
         .iter()
         .map(|p| load(p, coarsen, resolution))
         .collect::<Result<Vec<_>>>()?;
+    let mut prepared = with_phases(prepared, args.g.as_deref())?;
+    let grid = args.grid.as_deref();
     let mut work = crate::cost::Estimate::new();
     for scene in &prepared {
         work.add(
@@ -605,7 +693,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             crate::cost::pt_render(&scene.channels, &scene.effects, ref_spp),
         );
         for m in &methods {
-            for st in m.settings(quick, &spp) {
+            for st in m.settings(quick, &spp, grid) {
                 let backends_run = backends
                     .list(st.precision)
                     .iter()
@@ -629,7 +717,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     }
     let mut jobs = Vec::new();
     for m in &methods {
-        for s in m.settings(quick, &spp) {
+        for s in m.settings(quick, &spp, grid) {
             for b in backends.list(s.precision) {
                 if !m.renderer.supports(&b, s.precision) {
                     continue;
@@ -708,6 +796,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                 error_single: single,
                 error_multiple: multiple,
                 detail: r.detail,
+                g: scene
+                    .channels
+                    .first()
+                    .map_or(0.0, |c| c.phase.mean_cosine()),
             });
             if let Some(p) = points.last() {
                 let line = format!(
@@ -785,6 +877,26 @@ fn plot_scene(out: &Ctx, scene: &str, points: &[Point]) -> Result<()> {
     )
 }
 
+/// The folder of the atlas's anisotropy sub-run (see [`AccuracyCost`]'s figure runs).
+pub const HG_DIR: &str = "accuracy_hg";
+/// Its title.
+pub const HG_TITLE: &str = "Accuracy atlas: anisotropy variants under HG g (paper vs similarity)";
+/// Its datasets (the noise cloud and the shell/core scene, phase replaced by HG g).
+pub const HG_SCENES: [&str; 2] = ["scenes/cloud_directional.toml", "scenes/shell_core.toml"];
+/// Its values of g (issue 12, acceptance 3).
+pub const HG_G: &str = "0.3,0.7,0.9,0.99";
+/// Its methods: both variants of CDA, FLD-LP and LBM.
+pub const HG_METHODS: &str = "cda,cda:similarity,fld:lp,fld:lp:similarity,lbm,lbm:similarity";
+/// The size of its full run: the scenes coarsened to 32³, 32×32 pixels, a 2048-spp reference.
+pub const HG_FULL: [&str; 6] = [
+    "--coarsen",
+    "2",
+    "--resolution",
+    "32,32",
+    "--reference-spp",
+    "2048",
+];
+
 /// The accuracy vs time atlas in the registry.
 #[derive(Debug)]
 pub struct AccuracyCost;
@@ -813,6 +925,37 @@ impl Experiment for AccuracyCost {
         &args.common
     }
 
+    /// The atlas, and its anisotropy sub-run (issue 12, acceptance 3) into its own folder
+    /// `accuracy_hg`: [`HG_SCENES`] at HG g ∈ [`HG_G`], both anisotropy variants of CDA,
+    /// FLD-LP and LBM ([`HG_METHODS`]) at tolerance 1e-3 in f32 (quick: downsampling 4; full:
+    /// 4 and 2) and no path-tracer points; [`HG_FULL`] sizes the full run.
+    fn figure_runs(quick: bool) -> Vec<FigureRun> {
+        let root = crate::common::workspace_root();
+        let scenes: Vec<String> = HG_SCENES
+            .iter()
+            .map(|s| root.join(s).display().to_string())
+            .collect();
+        let mut hg = FigureRun::new(HG_DIR, HG_TITLE).args([
+            "--scenes".to_string(),
+            scenes.join(","),
+            "--g".into(),
+            HG_G.into(),
+            "--methods".into(),
+            HG_METHODS.into(),
+            "--grid".into(),
+            if quick {
+                "4:1e-3:f32"
+            } else {
+                "4:1e-3:f32,2:1e-3:f32"
+            }
+            .into(),
+        ]);
+        if !quick {
+            hg = hg.args(HG_FULL.iter().copied());
+        }
+        vec![FigureRun::new(Self::NAME, Self::TITLE), hg]
+    }
+
     fn promises(args: &Args) -> Vec<Promise> {
         let mut p = vec![
             Promise::csv(
@@ -829,6 +972,7 @@ impl Experiment for AccuracyCost {
                     "error_single",
                     "error_multiple",
                     "detail",
+                    "g",
                 ],
             ),
             Promise::csv(
@@ -840,10 +984,14 @@ impl Experiment for AccuracyCost {
         // Plots are named after the scene, which the registered datasets name after their file.
         for path in scene_files(args.scenes.as_deref(), DEFAULT_SCENES).unwrap_or_default() {
             if let Some(stem) = path.file_stem() {
-                p.push(Promise::file(format!(
-                    "pareto_{}.png",
-                    stem.to_string_lossy()
-                )));
+                let stem = stem.to_string_lossy();
+                let names = match &args.g {
+                    None => vec![stem.to_string()],
+                    Some(gs) => gs.iter().map(|&g| phase_scene_name(&stem, g)).collect(),
+                };
+                for name in names {
+                    p.push(Promise::file(format!("pareto_{name}.png")));
+                }
             }
         }
         p
@@ -931,6 +1079,10 @@ impl Experiment for AccuracyCost {
             rows,
         ));
         out.push('\n');
+        if let Some(variants) = crate::report::anisotropy_variants(&points) {
+            out.push_str(&variants);
+            out.push('\n');
+        }
         out.push_str(
             &s.pngs(
                 points

@@ -211,6 +211,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<TimingRow>> {
         let opts = TraceOptions {
             interpolation,
             majorant_block: block,
+            ..TraceOptions::default()
         };
         let sp = out.spinner("pt_render");
         sp.set_message(format!("{name} majorants, {spp} spp × {res}² pixels"));

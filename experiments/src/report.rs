@@ -175,6 +175,112 @@ pub fn table<S: AsRef<str>>(header: &[&str], rows: impl IntoIterator<Item = Vec<
     s
 }
 
+/// The anisotropy-variant tables of an atlas `points.csv` (issue 12, acceptance 3): for every
+/// method `m` that also has points as `m:similarity`, the errors against the path tracer of
+/// both variants per scene, g, setting and backend, as one table of the multiple-scattering
+/// error (`error_multiple`, what the variant changes) and one of the total image error, and
+/// a count of where each variant is closer. `None` if there is no such pair (or no `g`).
+pub fn anisotropy_variants(points: &Table) -> Option<String> {
+    points
+        .require(&[
+            "scene",
+            "method",
+            "setting",
+            "backend",
+            "g",
+            "error",
+            "error_multiple",
+        ])
+        .ok()?;
+    let methods = points.distinct("method");
+    let bases: Vec<&str> = methods
+        .iter()
+        .filter_map(|m| m.strip_suffix(":similarity"))
+        .filter(|b| methods.iter().any(|m| m == b))
+        .collect();
+    if bases.is_empty() {
+        return None;
+    }
+    let find = |scene: &str, setting: &str, backend: &str, method: &str| {
+        points.rows().find(|r| {
+            r.get("scene") == scene
+                && r.get("setting") == setting
+                && r.get("backend") == backend
+                && r.get("method") == method
+        })
+    };
+    let mut header = vec!["scene".to_string(), "g".into(), "setting".into()];
+    for b in &bases {
+        header.push(format!("{b} paper"));
+        header.push(format!("{b} similarity"));
+    }
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    let mut keys: Vec<(String, String, String, String)> = Vec::new();
+    for r in points.rows() {
+        let k = (
+            r.get("scene").to_string(),
+            r.get("g").to_string(),
+            r.get("setting").to_string(),
+            r.get("backend").to_string(),
+        );
+        if bases.iter().any(|b| r.get("method") == *b) && !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    // (closer, cases) per base: similarity closer by the multiple-scattering error.
+    let mut count = vec![(0usize, 0usize); bases.len()];
+    let mut tables = String::new();
+    for (column, what) in [
+        ("error_multiple", "multiple-scattering image"),
+        ("error", "total image"),
+    ] {
+        let mut rows = Vec::new();
+        for (scene, g, setting, backend) in &keys {
+            let mut row = vec![scene.clone(), g.clone(), format!("{setting} {backend}")];
+            for (i, b) in bases.iter().enumerate() {
+                let paper = find(scene, setting, backend, b).map_or(f64::NAN, |r| r.num(column));
+                let sim = find(scene, setting, backend, &format!("{b}:similarity"))
+                    .map_or(f64::NAN, |r| r.num(column));
+                let mark = |x: f64, y: f64| if x < y { "**" } else { "" };
+                row.push(format!(
+                    "{}{}{}",
+                    mark(paper, sim),
+                    fixed(paper, 4),
+                    mark(paper, sim)
+                ));
+                row.push(format!(
+                    "{}{}{}",
+                    mark(sim, paper),
+                    fixed(sim, 4),
+                    mark(sim, paper)
+                ));
+                if column == "error_multiple" && paper.is_finite() && sim.is_finite() {
+                    count[i].1 += 1;
+                    if sim < paper {
+                        count[i].0 += 1;
+                    }
+                }
+            }
+            rows.push(row);
+        }
+        let _ = writeln!(
+            tables,
+            "\n#### Relative RMSE of the {what} against the path tracer, per variant (closer in bold)\n"
+        );
+        tables.push_str(&table(&header, rows));
+    }
+    let counts: Vec<String> = bases
+        .iter()
+        .zip(&count)
+        .map(|(b, (sim, n))| format!("{b} in {sim} of {n}"))
+        .collect();
+    Some(format!(
+        "### Anisotropy variants: the paper's σs against the similarity scaling σs' = (1 − g)σs\n\n\
+         The similarity scaling is closer to the path tracer's multiple-scattering image in: {}.\n{tables}",
+        counts.join(", ")
+    ))
+}
+
 /// Every PNG under `root`, relative to it, sorted.
 pub fn pngs_under(root: &Path) -> Vec<String> {
     fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) {
@@ -417,6 +523,43 @@ mod tests {
             ["line 3 has 301 characters"]
         );
         let _ = std::fs::remove_dir_all(&root);
+    }
+
+    #[test]
+    fn anisotropy_variant_tables_pair_each_method_with_its_similarity_twin() {
+        let path =
+            std::env::temp_dir().join(format!("scatterbench-variants-{}.csv", std::process::id()));
+        std::fs::write(
+            &path,
+            "scene,method,setting,backend,error,error_multiple,g\n\
+             a_g0.9,pt,spp=16,cpu-f64,0.1,0.1,0.9\n\
+             a_g0.9,cda,ds=4,cpu-f32,0.5,0.8,0.9\n\
+             a_g0.9,cda:similarity,ds=4,cpu-f32,0.4,0.3,0.9\n\
+             a_g0.3,cda,ds=4,cpu-f32,0.2,0.25,0.3\n\
+             a_g0.3,cda:similarity,ds=4,cpu-f32,0.3,0.35,0.3\n\
+             a_g0.3,lbm:similarity,ds=4,cpu-f32,0.3,0.35,0.3\n",
+        )
+        .unwrap();
+        let t = Table::read(&path).unwrap();
+        let md = anisotropy_variants(&t).unwrap();
+        // One pair (cda); lbm:similarity has no paper twin and pt is no variant.
+        assert!(md.contains("cda in 1 of 2"), "{md}");
+        assert!(!md.contains("lbm") && !md.contains("pt "), "{md}");
+        assert!(
+            md.contains("| a_g0.9 | 0.9 | ds=4 cpu-f32 | 0.8000 | **0.3000** |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| a_g0.3 | 0.3 | ds=4 cpu-f32 | **0.2000** | 0.3000 |"),
+            "{md}"
+        );
+        std::fs::write(
+            &path,
+            "scene,method,setting,backend,error,error_multiple,g\n",
+        )
+        .unwrap();
+        assert!(anisotropy_variants(&Table::read(&path).unwrap()).is_none());
+        let _ = std::fs::remove_file(&path);
     }
 
     #[test]

@@ -142,6 +142,9 @@ pub enum SolverError {
     /// A GPU backend failure (no adapter, grid too large for the device, device lost …).
     #[error(transparent)]
     Gpu(#[from] crate::gpu::GpuError),
+    /// A run would need more memory than the budget allows ([`crate::budget`]).
+    #[error(transparent)]
+    TooLarge(#[from] crate::budget::TooLarge),
     /// The requested combination of backend and precision does not exist.
     #[error("{0}")]
     Unsupported(String),

@@ -7,7 +7,9 @@
 //! |---|---|---|
 //! | [`fld`] | classical diffusion (CDA) and flux-limited diffusion (FLD), red-black SOR | Koerner et al., *Flux-Limited Diffusion for Multiple Scattering in Participating Media* (FLD Eqs 30–37, Algorithm 1) |
 //! | [`lbm`] | lattice-Boltzmann lighting, D3Q19 photon transport | Geist et al., *Lattice-Boltzmann Lighting* (LB Eqs 3–6, 19, Appendices A–B) |
+//! | [`lpm`] | light propagation maps: Fattal's maps with Gruson's propagate/collect split, CPU (rayon) | Gruson et al., *Light Propagation Maps on Parallel Graphics Architectures* (LPM Eqs 1–6, Algorithms 1–2) |
 //! | [`rde`] | unsteady radiance diffusion, FTCS (conservative and the thesis's expanded forms) | Murray, *Legible Visualization of Semi-Transparent Objects using Light Transport* (thesis Eqs 4.1–4.9) |
+//! | [`pop`] | principal-ordinates propagation: ordinate-aligned grids, HG lobes per cell, 6-neighbour gather | Elek et al., *Principal-Ordinates Propagation* (Computers & Graphics 45, 2014; POP Eqs 1–8) |
 //! | [`method`] | one interface ([`Method`]) and one registry ([`method::METHODS`]) for every method above | |
 //! | [`pipeline`] | light baking → diffusion → primary raymarch, planned from the scene's effects | FLD Fig 2, Eqs 3, 6, 8, Section 6.2 |
 //!
@@ -28,10 +30,12 @@ pub mod fld;
 pub mod gpu;
 pub mod grid;
 pub mod lbm;
+pub mod lpm;
 pub mod medium;
 pub mod method;
 pub mod noise;
 pub mod pipeline;
+pub mod pop;
 pub mod rde;
 pub mod real;
 pub mod scene;

@@ -15,9 +15,10 @@
 //!
 //! ## Names
 //! A method is named `family[:variant]`, case-insensitive: `cda`, `fld` (= `fld:lp`, the
-//! paper's Levermore–Pomraning limiter), `fld:<limiter>`, `lbm`. [`parse`] turns a name
-//! into a method with the family's defaults; [`parse_with`] also takes named numeric
-//! parameters (`omega=1.5`), each family listing those it accepts
+//! paper's Levermore–Pomraning limiter), `fld:<limiter>`, `lbm`, each with an anisotropy
+//! variant `:paper` (the default, not printed) or `:similarity` ([`AnisotropyScaling`]).
+//! [`parse`] turns a name into a method with the family's defaults; [`parse_with`] also
+//! takes named numeric parameters (`omega=1.5`), each family listing those it accepts
 //! ([`MethodFamily::params`]); an unknown name or parameter is a typed
 //! [`SolverError::UnknownName`] that lists what exists.
 //!
@@ -264,16 +265,20 @@ impl Capabilities {
     }
 }
 
-/// How a method that scatters isotropically uses σs under an anisotropic phase function
-/// (issue 12, item 2).
+/// How a diffusion-type method (CDA, FLD, LBM) treats an anisotropic phase function
+/// (issue 12, item 2): `paper` (its paper's use) or `similarity` (a spec suffix, e.g.
+/// `fld:lp:similarity`, `lbm:similarity`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AnisotropyScaling {
-    /// The papers' use: σs as given, scattered isotropically (the phase function is ignored).
+    /// The papers' use of σs as given: CDA and FLD scatter isotropically (the phase function
+    /// is ignored); LBM scatters with the lattice's Henyey–Greenstein kernel (LB Section 4).
     #[default]
     Paper,
     /// The similarity (transport) scaling σs' = (1 − g)σs, σt' = σa + σs' with isotropic
-    /// scattering; the source q is unchanged.
+    /// scattering. A method scales the medium of its [`Problem`] and takes its source q as
+    /// given; the pipeline gives it the δ-scaled source, its lights baked through the scaled
+    /// medium and scattered at σs' (`q_ri = σs'·L_ri'`, see [`crate::pipeline`]).
     Similarity,
 }
 
@@ -465,6 +470,7 @@ pub static METHODS: &[MethodFamily] = &[
     crate::fld::CDA,
     crate::fld::FLD,
     crate::lbm::LBM,
+    crate::lpm::LPM,
     crate::rde::RDE,
 ];
 

@@ -24,6 +24,8 @@ method_conformance!(
     cda: "cda",
     fld_lp: "fld:lp",
     lbm: "lbm",
+    lbm_similarity: "lbm:similarity",
+    lpm: "lpm",
     rde: "rde",
 );
 

@@ -544,4 +544,53 @@ fn the_plan_names_the_anisotropy_variant_and_warns_on_strong_anisotropy() {
     assert!(
         s.explain().contains("fld:lp:similarity") && s.explain().contains("similarity scaling")
     );
+    // LBM: its paper variant scatters with the lattice HG kernel, warned about the same way.
+    let l = with("lbm", 0.9);
+    assert_eq!(l.warnings.len(), 1, "{}", l.explain());
+    assert!(l.explain().contains("lattice") && l.explain().contains("`paper`"));
+    assert!(with("lbm", 0.4).warnings.is_empty());
+    let ls = with("lbm:similarity", 0.9);
+    assert!(ls.warnings.is_empty(), "{}", ls.explain());
+    assert!(ls.explain().contains("lbm:similarity") && ls.explain().contains("similarity scaling"));
+}
+
+/// Issue 12, item 2: at g = 0 the similarity variant of CDA, FLD-LP and LBM renders exactly
+/// the paper variant's images (no rescaled medium, no re-baked source); at g = 0.9 its
+/// multiple-scattering image differs (the δ-scaled source and medium are used).
+#[test]
+fn the_similarity_variant_is_the_paper_variant_at_g_zero() {
+    for base in ["cda", "fld:lp", "lbm"] {
+        let render = |variant: &str, g: f64| {
+            let mut s = cloud(0.9, true, true);
+            s.phase = Phase::HenyeyGreenstein { g };
+            let cfg = PipelineConfig {
+                method: format!("{base}:{variant}").parse().unwrap(),
+                downsample: 2,
+                ..PipelineConfig::default()
+            };
+            pipeline::render(&s, &cfg, &Backend::Cpu(Precision::F64))
+                .unwrap()
+                .channels
+                .remove(0)
+        };
+        let (p, s) = (render("paper", 0.0), render("similarity", 0.0));
+        assert_eq!(p.multiple, s.multiple, "{base}");
+        assert_eq!(p.total, s.total, "{base}");
+        let (p, s) = (render("paper", 0.9), render("similarity", 0.9));
+        let d: f64 = p
+            .multiple
+            .iter()
+            .zip(&s.multiple)
+            .map(|(a, b)| (a - b).abs())
+            .sum();
+        let n: f64 = p.multiple.iter().map(|a| a.abs()).sum();
+        assert!(
+            d > 0.01 * n,
+            "{base}: g = 0.9 variants differ by {d} of {n}"
+        );
+        assert_eq!(
+            p.single, s.single,
+            "{base}: single scattering is the same pass"
+        );
+    }
 }

@@ -30,8 +30,9 @@ struct Args {
     /// Run nothing: re-render README.md from the run folders already under the root.
     #[arg(long)]
     report_only: bool,
-    /// Run only these experiments (comma-separated names, e.g. `renderings,mitsuba_compare`);
-    /// the README is re-rendered from the existing folders of the others.
+    /// Run only these experiments (comma-separated names, e.g. `renderings,mitsuba_compare`)
+    /// or runs (their folders, e.g. `accuracy_hg`, `mitsuba_compare/cloud_directional`); the
+    /// README is re-rendered from the existing folders of the others.
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
 }
@@ -46,13 +47,17 @@ fn main() -> Result<()> {
         })
     });
     let backend = args.backend.backend.to_string();
-    if let Some(bad) = args
-        .only
+    let runs: Vec<_> = EXPERIMENTS
         .iter()
-        .find(|n| !EXPERIMENTS.iter().any(|e| e.name == n.as_str()))
-    {
+        .flat_map(|e| e.figure_runs(args.quick).into_iter().map(move |r| (e, r)))
+        .collect();
+    if let Some(bad) = args.only.iter().find(|n| {
+        !runs
+            .iter()
+            .any(|(e, r)| e.name == n.as_str() || r.dir == n.as_str())
+    }) {
         anyhow::bail!(
-            "--only: no experiment `{bad}`; registered: {}",
+            "--only: no experiment or run `{bad}`; registered: {}",
             EXPERIMENTS
                 .iter()
                 .map(|e| e.name)
@@ -60,10 +65,6 @@ fn main() -> Result<()> {
                 .join(", ")
         );
     }
-    let runs: Vec<_> = EXPERIMENTS
-        .iter()
-        .flat_map(|e| e.figure_runs(args.quick).into_iter().map(move |r| (e, r)))
-        .collect();
     // Experiments skipped because something they need is not installed, with the reason.
     let mut unavailable_because: HashMap<&str, String> = HashMap::new();
     let mut outcomes = Vec::new();
@@ -74,7 +75,9 @@ fn main() -> Result<()> {
         {
             outcome.notes.push(format!("Ran on the CPU only ({why})."));
         }
-        if args.report_only || !(args.only.is_empty() || args.only.iter().any(|n| n == e.name)) {
+        if args.report_only
+            || !(args.only.is_empty() || args.only.iter().any(|n| n == e.name || *n == run.dir))
+        {
             outcomes.push(outcome);
             continue;
         }

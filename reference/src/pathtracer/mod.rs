@@ -59,6 +59,9 @@ pub struct TraceOptions {
     pub interpolation: Interpolation,
     /// Majorant block edge in voxels (default 8; ≥ the grid size: one global majorant).
     pub majorant_block: usize,
+    /// Whether high-contrast blocks are walked cell by cell (default true; false: coarse
+    /// blocks only; see [`tracking`], "Refined blocks").
+    pub refine: bool,
 }
 
 impl TraceOptions {
@@ -76,6 +79,7 @@ impl Default for TraceOptions {
         Self {
             interpolation: Interpolation::Nearest,
             majorant_block: tracking::DEFAULT_BLOCK,
+            refine: true,
         }
     }
 }

@@ -400,6 +400,91 @@ fn majorant_grid_matches_global_majorant() {
     }
 }
 
+/// Issue 14's dense voxel: an 8³ cube of σt = 4 with two centre voxels of σt = 10³. Its image
+/// with refined blocks (cell-by-cell walk) and with one global majorant (the textbook
+/// Woodcock tracker, ~10³ null collisions per unit length) agree per pixel (Šidák) and in
+/// the image mean, nearest and trilinear; the dense voxel is then raised to 10⁶ and 3·10³⁸
+/// (nearest), which only the refined tracker can render: all three are the opaque-voxel
+/// limit (σt∆l ≥ 125) and agree with each other.
+#[test]
+fn dense_voxel_refined_blocks_match_the_global_majorant() {
+    let cube = |centre: f64| {
+        let grid = Grid::new([8, 8, 8], 0.125).unwrap();
+        let mut sigma = vec![4.0; grid.len()];
+        sigma[grid.index(4, 4, 4)] = centre;
+        sigma[grid.index(3, 4, 4)] = centre;
+        let n = grid.len();
+        Medium::new(grid, sigma, vec![0.9; n], vec![0.0; n]).unwrap()
+    };
+    let cam = Camera {
+        hide_background: false,
+        eye: [0.5, -1.2, 0.9],
+        target: [0.5, 0.5, 0.5],
+        up: [0.0, 0.0, 1.0],
+        projection: Projection::Perspective {
+            fov_y_degrees: 30.0,
+        },
+        resolution: [6, 6],
+    };
+    let scene_of = |centre| scene(cube(centre), Phase::Isotropic, vec![sun()], Some(cam));
+    let zmax = sidak_z(36 + 1, FAMILY);
+    let compare = |a: &Image, b: &Image, what: &str| -> f64 {
+        let mut worst = 0.0f64;
+        for i in 0..36 {
+            let (x, y) = (
+                Estimate {
+                    mean: a.mean[i],
+                    stderr: a.stderr[i],
+                },
+                Estimate {
+                    mean: b.mean[i],
+                    stderr: b.stderr[i],
+                },
+            );
+            assert!(
+                x.z_diff(&y).abs() < zmax,
+                "{what}, pixel {i}: {x:?} vs {y:?}"
+            );
+            worst = worst.max(x.z_diff(&y).abs());
+        }
+        let mean = |m: &Image| {
+            let v = m.mean.iter().sum::<f64>() / 36.0;
+            let e = m.stderr.iter().map(|s| s * s).sum::<f64>().sqrt() / 36.0;
+            Estimate { mean: v, stderr: e }
+        };
+        let z = mean(a).z_diff(&mean(b));
+        assert!(z.abs() < zmax, "{what}, image mean: z = {z}");
+        z
+    };
+    for interp in [Interpolation::Nearest, Interpolation::Trilinear] {
+        let s = scene_of(1e3);
+        let opts = TraceOptions {
+            interpolation: interp,
+            ..TraceOptions::default()
+        };
+        let refined = render_image_with(&s, &settings(256, 11, None), &opts).unwrap();
+        let global = render_image_with(
+            &s,
+            &settings(256, 12, None),
+            &TraceOptions {
+                majorant_block: 1000,
+                refine: false,
+                ..opts
+            },
+        )
+        .unwrap();
+        compare(&refined, &global, &format!("{interp:?} refined vs global"));
+    }
+    let opts = TraceOptions::default();
+    let thousand = render_image_with(&scene_of(1e3), &settings(256, 13, None), &opts).unwrap();
+    let million = render_image_with(&scene_of(1e6), &settings(256, 14, None), &opts).unwrap();
+    let huge = render_image_with(&scene_of(3e38), &settings(256, 15, None), &opts).unwrap();
+    compare(&million, &huge, "10^6 vs 3e38");
+    assert!(huge.mean.iter().all(|v| v.is_finite()));
+    // At σt∆l = 125 the voxels are already opaque: 10³ is the limit too.
+    compare(&thousand, &huge, "10^3 vs 3e38");
+}
+
 /// Track-length fluence of a collimated beam in a purely absorbing box: the voxel average of
 /// E e^{−σt·depth}, no collided light.
 #[test]

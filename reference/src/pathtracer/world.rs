@@ -9,7 +9,7 @@ use super::TraceOptions;
 use super::math::{Vec3, add, around, dot, norm, scale, sub};
 use super::phase::{eval, uniform_sphere};
 use super::rng::Rng;
-use super::tracking::Tracker;
+use super::tracking::{self, Tracker};
 use super::volume::Volume;
 use crate::ReferenceError;
 use solvers::scene::{Light, Phase, Scene};
@@ -96,7 +96,12 @@ impl World {
         scene.validate()?;
         let volume = Volume::new(&scene.medium, options.interpolation)?;
         let has_emission = volume.has_emission();
-        let tracker = Tracker::new(volume, options.majorant_block);
+        let refine = if options.refine {
+            tracking::REFINE_OPTICAL_DEPTH
+        } else {
+            f64::INFINITY
+        };
+        let tracker = Tracker::with_refinement(volume, options.majorant_block, refine);
         let mut w = Self {
             tracker,
             phase: scene.phase,

@@ -97,18 +97,20 @@
 //!   (`results/convergence_check`). Pinned by `solvers/tests/marshak.rs`.
 //! * **Anisotropy (issue 12, item 2).** The paper scatters isotropically with σs as given
 //!   (variant `paper`, e.g. `cda`, `fld:lp`); `cda:similarity`, `fld:<limiter>:similarity`
-//!   solve with σs' = (1 − g)σs, σt' = σa + σs' and the source unchanged
-//!   ([`crate::method::AnisotropyScaling`]). The default stays `paper`. Measured as the
-//!   relative L2 distance of the pipeline's multiple-scattering image (f32, downsample 4,
-//!   16×16) to the path tracer's (256 spp) on `noise_cloud` 32³ / `shell_core` 32³, paper vs
-//!   similarity: CDA g = 0.3: 0.845/0.881, 0.951/0.963; g = 0.7: 0.781/0.907, 0.929/0.972;
-//!   g = 0.9: 0.732/0.923, 0.929/0.986; g = 0.99: 5.39/1.08, 5.50/0.775. FLD-LP g = 0.3:
-//!   0.355/0.413, 0.540/0.575; g = 0.7: 0.311/0.358, 0.497/0.580; g = 0.9: 1.447/0.872,
-//!   0.894/0.827; g = 0.99: 21.5/12.5, 52.5/32.2. The paper's variant is closer in 10 of 16
-//!   cases (all at g ≤ 0.7), the similarity scaling at g = 0.99 (and FLD-LP at 0.9), where
-//!   the plan warns when `paper` runs with |g| > 0.5. Both are far from the path tracer on
-//!   these datasets for the medium–vacuum face reason below. Pinned by
-//!   `reference/tests/anisotropy_scaling.rs`.
+//!   solve with σs' = (1 − g)σs, σt' = σa + σs' ([`crate::method::AnisotropyScaling`]) and,
+//!   in the pipeline, the δ-scaled source σs'·L_ri' (lights baked through σt'). Keeping the
+//!   source σs·L_ri instead (the first version) put 1/(1 − g) too much light into the
+//!   diffusion near the lit surface: at g = 0.99 FLD-LP's multiple-scattering error was 12.5
+//!   (noise_cloud 32³, 16×16) and is 0.98 with the δ-scaled source. The default stays
+//!   `paper`: the measurement splits by g. In `results/accuracy_hg` (noise cloud and
+//!   shell_core at 32³, 32×32 pixels, ds 4 and 2, tol 1e-3 f32, 2048-spp reference), the
+//!   relative RMSE of the multiple-scattering image is lower with `similarity` in 8 of 16
+//!   cases for FLD-LP (every case at g ≥ 0.9, e.g. g = 0.99 cloud ds 4: 8.26 → 0.978; none at
+//!   g ≤ 0.7, e.g. g = 0.3 cloud ds 4: 0.333 paper vs 0.448) and in 2 of 16 for CDA (only
+//!   the cloud at g = 0.99: 2.14 → 0.997; at g = 0.9 0.555 paper vs 0.946). The datasets of
+//!   this repository that are anisotropic have g = 0.3, where `paper` is closer in every case.
+//!   The plan warns when `paper` runs with |g| > 0.5. Pinned by
+//!   `reference/tests/anisotropy_scaling.rs` (paper closer at g = 0.3, similarity at 0.99).
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.

@@ -73,6 +73,29 @@
 //!   see `tests/lbm_conformance.rs`); [`Absorption::Loss`] is the variant to compare with
 //!   transport in absorbing media.
 //!
+//! ## Anisotropy variants (issue 12, item 2; decisions where the paper is silent)
+//! `lbm` (= `lbm:paper`) scatters with LB Section 4's HG kernel on the 18 moving directions
+//! (renormalised, above). `lbm:similarity` scatters isotropically on the transport-scaled
+//! medium σs' = (1 − g)σs, σt' = σa + σs' ([`crate::method::AnisotropyScaling`]); in the
+//! pipeline its source is δ-scaled too (lights baked through σt', scattered at σs').
+//! * **Why the plan warns for `paper` at |g| > 0.5.** The D3Q19 kernel's discrete mean
+//!   cosine ḡ overshoots g: axial/diagonal 0.321/0.296 at g = 0.3, 0.578/0.504 at 0.5,
+//!   0.849/0.792 at 0.7, 0.994/0.991 at 0.9, 1.0000/1.0000 at 0.99: for strong anisotropy the
+//!   kernel keeps scattered density on its own link, i.e. it hardly scatters at all, while
+//!   the baked source σs·L_ri still enters isotropically (test
+//!   `the_lattice_kernel_under_resolves_strong_anisotropy`).
+//! * **Measured (default stays `paper`).** In `results/accuracy_hg` (noise cloud and
+//!   shell_core at 32³, 32×32 pixels, ds 4 and 2, tol 1e-3 f32, 2048-spp reference), the
+//!   relative RMSE of the multiple-scattering image is lower with `similarity` in 10 of 16
+//!   cases: all 8 at g ≥ 0.9 (g = 0.9 cloud ds 4: 2.15 → 0.371; g = 0.99: 8.98 → 0.979), 2 of
+//!   4 at g = 0.7 (ds 2: 0.386 → 0.271, 0.403 → 0.374; ds 4 paper 0.302 vs 0.322, 0.387 vs
+//!   0.455) and none at g = 0.3 (cloud ds 2: 0.091 paper vs 0.152). In
+//!   `reference/tests/anisotropy_scaling.rs` (ds 4, 16×16) it is 4 of 8 (all at g ≥ 0.9). The
+//!   crossover lies between g = 0.7 and 0.9, the anisotropic datasets of this repository have
+//!   g = 0.3, and CDA and FLD keep `paper` for the same split, so LBM keeps it too.
+//!   Tests: `at_g_zero_the_variants_are_identical`,
+//!   `similarity_is_the_isotropic_solve_on_the_transport_scaled_medium` (`method.rs`).
+//!
 //! ## Stopping rule
 //! Steady when the relative change of the total lattice density per step falls below the
 //! tolerance (default 10⁻⁹ in f64, 10⁻⁶ in f32, see [`LbmConfig::tolerance`]), or at

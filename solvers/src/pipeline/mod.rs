@@ -30,9 +30,15 @@
 //! (power per area per steradian), row-major, top-left first.
 //!
 //! **Anisotropy.** Single scattering sees the phase function. The multiple-scattering pass
-//! sees it only if its method says so ([`crate::method::Capabilities::anisotropic`]: LBM);
-//! CDA and FLD scatter isotropically with the medium as given (no similarity scaling), as in
-//! the paper. The plan's `diffusion_solve` records which.
+//! sees it only if its method says so ([`crate::method::Capabilities::anisotropic`]: LBM's
+//! paper variant, on the lattice); CDA and FLD scatter isotropically with the medium as given,
+//! as in the paper, and every one of the three has the similarity variant `:similarity`
+//! (σs' = (1 − g)σs, [`crate::method::AnisotropyScaling`]), whose source is δ-scaled as
+//! well: the lights are baked again through σt' = σa + σs' and scattered at σs' (the forward
+//! fraction g of each scattering stays in the beam). The raymarch's in-scattering of φ keeps
+//! the true σs (in-scattering of a nearly isotropic field is σs φ/4π whatever the phase
+//! function). The plan's `diffusion_solve` records which variant ran, and the plan warns when
+//! `paper` runs with |g| > 0.5.
 
 pub mod bake;
 pub mod geometry;
@@ -323,13 +329,56 @@ pub fn plan_channels(
         && config.method.anisotropy() == Some(crate::method::AnisotropyScaling::Paper)
         && g.abs() > 0.5
     {
+        let what = if config.method.capabilities().anisotropic {
+            "scatters with the lattice's Henyey–Greenstein kernel (the paper's variant `paper`), \
+             whose discrete mean cosine overshoots g on D3Q19 for |g| > 0.5"
+        } else {
+            "scatters isotropically with σs as given (the paper's variant `paper`)"
+        };
         plan.warnings.push(format!(
-            "{} scatters isotropically with σs as given (the paper's variant) under g = {g}; \
-             the variant `:similarity` uses σs' = (1 − g)σs",
+            "{} {what} under g = {g}; the variant `:similarity` uses σs' = (1 − g)σs",
             config.method.name()
         ));
     }
     Ok(plan)
+}
+
+/// The source q_ri of the similarity variant (`:similarity`, [`AnisotropyScaling`]) under a
+/// phase function with g ≠ 0: each baked light baked again through the scaled medium
+/// (σt' = σa + σs', σs' = (1 − g)σs) and q_ri = σs'·L_ri' (FLD Eq 6 on the scaled medium), the
+/// δ-scaling's diffuse source: the forward fraction g of each scattering stays in the
+/// reduced beam L_ri', which the scaled medium attenuates less. `None` for the paper's variant
+/// or g = 0 (the source is the medium's own q_ri). Measured against keeping σs·L_ri
+/// (`results/accuracy_hg`, see the `fld` module docs).
+///
+/// [`AnisotropyScaling`]: crate::method::AnisotropyScaling
+fn similarity_source(
+    config: &PipelineConfig,
+    medium: &crate::Medium<f64>,
+    phase: crate::scene::Phase,
+    baked: &[BakedLight],
+    lights: &[crate::scene::Light],
+) -> Result<Option<Vec<f64>>, PipelineError> {
+    let Some(a) = config.method.anisotropy() else {
+        return Ok(None);
+    };
+    if a != crate::method::AnisotropyScaling::Similarity {
+        return Ok(None);
+    }
+    let Some(scaled) = a.apply(medium, phase) else {
+        return Ok(None);
+    };
+    let mut rebaked = Vec::with_capacity(baked.len());
+    for b in baked {
+        let light = lights.get(b.index).unwrap_or(&b.light);
+        rebaked.push(bake::bake(&scaled, b.index, light).ok_or(
+            PipelineError::UnsupportedLight {
+                index: b.index,
+                kind: "non-bakeable",
+            },
+        )?);
+    }
+    Ok(Some(bake::q_ri(&scaled, &rebaked)))
 }
 
 /// Renders 1 or 3 colour channels (scenes that differ only in their medium values) with
@@ -377,7 +426,14 @@ pub fn render_channels(
                     downsample,
                     ..
                 } => {
-                    let mut q = bake::q_ri(medium, &baked);
+                    // The similarity variant's source is the δ-scaled one: the lights baked
+                    // through σt' = σa + (1 − g)σs and scattered at σs' = (1 − g)σs (the
+                    // forward peak g·σs stays in the beam); see `similarity_source`.
+                    let mut q =
+                        match similarity_source(config, medium, phase, &baked, &scene.lights)? {
+                            Some(q) => q,
+                            None => bake::q_ri(medium, &baked),
+                        };
                     if *with_emission {
                         q.iter_mut()
                             .zip(&medium.emission)

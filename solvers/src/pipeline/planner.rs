@@ -222,7 +222,9 @@ pub fn plan(
                 "multiple scattering is rendered: φ from {} on a grid downsampled {downsample}x by {}, {}",
                 src.join(" + "),
                 method.name(),
-                if anisotropic {
+                if anisotropic && method.anisotropy().is_some() {
+                    "with the scene's phase function on the method's own kernel (the paper's variant `paper`)"
+                } else if anisotropic {
                     "with the scene's phase function"
                 } else if method.anisotropy() == Some(crate::method::AnisotropyScaling::Similarity) {
                     "scattering isotropically with the similarity scaling σs' = (1 − g)σs, σt' = σa + σs' (variant `similarity`)"

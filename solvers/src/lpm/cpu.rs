@@ -1,0 +1,613 @@
+//! The CPU solver: Gruson's propagate/collect split (LPM Alg 2, Eq 6) with rayon, one task
+//! per direction of the current LPM (each owns its T buffer), then a per-voxel collect that
+//! sums the directions in a fixed order. Bit-identical for any thread count (test T23).
+
+use super::directions::{CONE_SOLID_ANGLE, CONES, Directions, PhaseMatrix, lateral_axes};
+use super::geometry::DirectionTable;
+use super::{
+    Area, BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, OrderTally, Orders, PathLength,
+    StorageI, WrapBc,
+};
+use crate::method::Stop;
+use crate::{Grid, Medium, Real, SolverError};
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// A prepared LPM solve on one medium: directions, phase matrix, geometry tables and the
+/// medium in the working precision.
+#[derive(Debug, Clone)]
+pub struct CpuLpm<T> {
+    /// The grid.
+    pub grid: Grid,
+    /// The settings.
+    pub config: LpmConfig,
+    /// The propagation directions.
+    pub dirs: Directions,
+    /// F of LPM Eq 5 (fine and coarse).
+    pub phase: PhaseMatrix,
+    /// One sub-segment table per direction (its face's sweep length).
+    pub tables: Vec<DirectionTable>,
+    sigma_t: Vec<T>,
+    sigma_s: Vec<T>,
+    /// σt and σs in the x-faces' layout ([`to_x_layout`]), so their sweeps run along memory.
+    sigma_t_x: Vec<T>,
+    sigma_s_x: Vec<T>,
+    /// U⁰ = I⁰ = j/4π per voxel (D9).
+    source: Vec<T>,
+}
+
+/// (E, φ1, φ2) of optical depth τ: E = e^{−τ}, φ1 = (1 − E)/τ, φ2 = (τ − 1 + E)/τ² (spec
+/// §1.6); below `ts` the series (8 terms each, truncation < 10⁻¹⁶ at the thresholds used)
+/// with E = 1 − τφ1, so vacuum is exact (D29).
+#[inline(always)]
+pub fn phis<T: Real>(tau: T, ts: T) -> (T, T, T) {
+    if tau < ts {
+        let c = |x: f64| T::c(x);
+        let f1 = T::one()
+            - tau
+                * (c(1.0 / 2.0)
+                    - tau
+                        * (c(1.0 / 6.0)
+                            - tau
+                                * (c(1.0 / 24.0)
+                                    - tau
+                                        * (c(1.0 / 120.0)
+                                            - tau
+                                                * (c(1.0 / 720.0)
+                                                    - tau
+                                                        * (c(1.0 / 5040.0)
+                                                            - tau * c(1.0 / 40320.0)))))));
+        let f2 = c(1.0 / 2.0)
+            - tau
+                * (c(1.0 / 6.0)
+                    - tau
+                        * (c(1.0 / 24.0)
+                            - tau
+                                * (c(1.0 / 120.0)
+                                    - tau
+                                        * (c(1.0 / 720.0)
+                                            - tau
+                                                * (c(1.0 / 5040.0)
+                                                    - tau
+                                                        * (c(1.0 / 40320.0)
+                                                            - tau * c(1.0 / 362880.0)))))));
+        (T::one() - tau * f1, f1, f2)
+    } else {
+        let em1 = (-tau).exp_m1();
+        (T::one() + em1, -em1 / tau, (tau + em1) / (tau * tau))
+    }
+}
+
+/// The series threshold of [`phis`] for precision `T`: 0.05 in f64, 0.5 in f32 (where the
+/// direct φ2 loses 2ε/τ to cancellation).
+pub fn series_threshold<T: Real>() -> T {
+    T::c(if T::epsilon().f() > 1e-10 { 0.5 } else { 0.05 })
+}
+
+/// One sub-segment of LPM Eq 3 in the conservative form (spec §1.6): returns
+/// (L_out, ∫L ds) for incoming radiance `l_in`, unshot source `u`, extinction `st` and
+/// length `s`.
+#[inline(always)]
+pub fn segment<T: Real>(l_in: T, u: T, st: T, s: T, ts: T) -> (T, T) {
+    let (e, f1, f2) = phis(st * s, ts);
+    (l_in * e + u * s * f1, s * (l_in * f1 + u * s * f2))
+}
+
+/// Ray-sum tallies of one direction's sweep (radiance summed over rays; the caller weights
+/// them by A|Ω^i|).
+#[derive(Debug, Clone, Copy, Default)]
+struct SweepTally {
+    injected: f64,
+    exited: f64,
+}
+
+impl<T: Real> CpuLpm<T> {
+    /// Prepares a solve; validates the medium and the settings, and refuses a grid whose
+    /// buffers exceed the memory budget (before allocating them).
+    pub fn new(medium: &Medium<T>, config: &LpmConfig) -> Result<Self, SolverError> {
+        config.validate()?;
+        medium.validate()?;
+        let grid = medium.grid;
+        let dirs = Directions::new(config.m)?;
+        let memory = super::memory_bytes(&grid, config, std::mem::size_of::<T>() as u64);
+        config.check_budget(&grid, memory.total())?;
+        let phase = PhaseMatrix::new(&dirs, config.phase, config.quadrature)?;
+        let tables = dirs
+            .dirs
+            .iter()
+            .map(|d| DirectionTable::new(d, config.m, grid.n[d.face / 2]))
+            .collect();
+        let sigma_s: Vec<T> = medium
+            .sigma_t
+            .iter()
+            .zip(&medium.albedo)
+            .map(|(&s, &a)| s * a)
+            .collect();
+        let four_pi = T::c(4.0 * PI);
+        let sigma_s: Vec<T> = sigma_s;
+        Ok(Self {
+            sigma_t_x: to_x_layout(&grid, &medium.sigma_t),
+            sigma_s_x: to_x_layout(&grid, &sigma_s),
+            grid,
+            config: config.clone(),
+            dirs,
+            phase,
+            tables,
+            sigma_t: medium.sigma_t.clone(),
+            sigma_s,
+            source: medium.emission.iter().map(|&j| j / four_pi).collect(),
+        })
+    }
+
+    /// Sub-segments one order processes: Σ_i (table entries of i) × (rays of i's face), the
+    /// measured count of D20 (294 n³ for m = 5).
+    pub fn sub_segments_per_order(&self) -> u64 {
+        let n = self.grid.n;
+        self.dirs
+            .dirs
+            .iter()
+            .zip(&self.tables)
+            .map(|(d, t)| {
+                let (b, c) = lateral_axes(d.face / 2);
+                (t.segs.len() * n[b] * n[c]) as u64
+            })
+            .sum()
+    }
+
+    /// Bytes of a solve by our per-buffer formula ([`super::memory_bytes`]).
+    pub fn memory_estimate(&self) -> u64 {
+        super::memory_bytes(&self.grid, &self.config, std::mem::size_of::<T>() as u64).total()
+    }
+
+    /// The ray tube's cross-section A of direction i: A⊥ = h²|ω·n_f| (D6) or the paper's face
+    /// area h².
+    pub fn area(&self, i: usize) -> f64 {
+        let h2 = self.grid.dl * self.grid.dl;
+        match self.config.formulas.area {
+            Area::Perpendicular => h2 * self.dirs.dirs[i].cos_axis,
+            Area::Face => h2,
+        }
+    }
+
+    /// The factor on the Euclidean length: 1 (D5) or the paper's 1/|ω_n|.
+    pub fn path_factor(&self, i: usize) -> f64 {
+        match self.config.formulas.path {
+            PathLength::Euclidean => 1.0,
+            PathLength::Paper => 1.0 / self.dirs.dirs[i].cos_axis,
+        }
+    }
+
+    /// Sweeps direction `i` through the grid: reads `u_src` (the unshot U of its cone),
+    /// starts and re-enters rays per the wrap rule, accumulates ∫L ds into `g` (and the
+    /// paper's deposit into `paper`). Returns the final ray radiances (lattice order).
+    ///
+    /// The x-faces (a = 0) sweep in the layout of [`to_x_layout`] (`u_src` must be in it
+    /// then) into a scratch T that is transposed into `g` (and `paper`) at the end.
+    fn sweep(
+        &self,
+        i: usize,
+        u_src: &[T],
+        l_bc: f64,
+        order: usize,
+        g: &mut [T],
+        paper: Option<&mut [T]>,
+    ) -> (Vec<T>, SweepTally) {
+        if self.dirs.dirs[i].face / 2 != 0 {
+            let n = self.grid.n;
+            let strides = [1, n[0], n[0] * n[1]];
+            let media = (&self.sigma_t[..], &self.sigma_s[..]);
+            return self.sweep_in(i, media, strides, u_src, l_bc, order, g, paper);
+        }
+        let n = self.grid.n;
+        let strides = [n[1] * n[2], 1, n[1]];
+        let media = (&self.sigma_t_x[..], &self.sigma_s_x[..]);
+        let mut gx = vec![T::zero(); g.len()];
+        let mut px = paper.as_ref().map(|p| vec![T::zero(); p.len()]);
+        let out = self.sweep_in(
+            i,
+            media,
+            strides,
+            u_src,
+            l_bc,
+            order,
+            &mut gx,
+            px.as_deref_mut(),
+        );
+        from_x_layout(&self.grid, &gx, g);
+        if let (Some(p), Some(px)) = (paper, px) {
+            from_x_layout(&self.grid, &px, p);
+        }
+        out
+    }
+
+    /// [`Self::sweep`] with the medium and buffers in the layout given by `strides` (of the
+    /// x, y, z voxel indices).
+    #[allow(clippy::too_many_arguments)]
+    fn sweep_in(
+        &self,
+        i: usize,
+        (sigma_t, sigma_s): (&[T], &[T]),
+        strides: [usize; 3],
+        u_src: &[T],
+        l_bc: f64,
+        order: usize,
+        g: &mut [T],
+        mut paper: Option<&mut [T]>,
+    ) -> (Vec<T>, SweepTally) {
+        let dir = &self.dirs.dirs[i];
+        let (a, sign) = dir.axis();
+        let (b, c) = lateral_axes(a);
+        let n = self.grid.n;
+        let (na, nb, nc) = (n[a], n[b], n[c]);
+        let (sa, sb, sc) = (strides[a], strides[b], strides[c]);
+        let scale = self.grid.dl * self.path_factor(i);
+        let l0 = if order == 0 { l_bc } else { 0.0 };
+        let reentry = match self.config.wrap {
+            WrapBc::Zero => Some(T::zero()),
+            WrapBc::Open => Some(T::c(l0)),
+            WrapBc::Periodic => None,
+        };
+        let ts = series_threshold::<T>();
+        let mut ray = vec![T::c(l0); nb * nc];
+        let mut tally = SweepTally {
+            injected: l0 * (nb * nc) as f64,
+            exited: 0.0,
+        };
+        let table = &self.tables[i];
+        let mut prev = [0i64; 2];
+        let paper_deposit = self.config.formulas.deposit == Deposit::Paper;
+        for z in 0..na {
+            let slab = if sign > 0 { z } else { na - 1 - z };
+            for seg in table.slab(z) {
+                let ob = seg.offset[0].rem_euclid(nb as i64) as usize;
+                let oc = seg.offset[1].rem_euclid(nc as i64) as usize;
+                let wb = seg.offset[0] != prev[0];
+                let wc = seg.offset[1] != prev[1];
+                if let Some(re) = reentry {
+                    // Rays that just crossed a side face leave (A) and re-enter (B), Fig 2.
+                    let mut rb = usize::MAX;
+                    if wb {
+                        let xb = if seg.offset[0] > prev[0] { 0 } else { nb - 1 };
+                        rb = (xb + nb - ob) % nb;
+                        for s in 0..nc {
+                            let l = &mut ray[rb + nb * s];
+                            tally.exited += l.f();
+                            *l = re;
+                            tally.injected += re.f();
+                        }
+                    }
+                    if wc {
+                        let yc = if seg.offset[1] > prev[1] { 0 } else { nc - 1 };
+                        let s = (yc + nc - oc) % nc;
+                        for r in (0..nb).filter(|&r| r != rb) {
+                            let l = &mut ray[r + nb * s];
+                            tally.exited += l.f();
+                            *l = re;
+                            tally.injected += re.f();
+                        }
+                    }
+                }
+                prev = seg.offset;
+                let len = T::c(seg.len * scale);
+                for yc in 0..nc {
+                    let s = (yc + nc - oc) % nc;
+                    let rays = &mut ray[nb * s..nb * (s + 1)];
+                    let base = slab * sa + yc * sc;
+                    let (head, tail) = rays.split_at_mut(nb - ob);
+                    for (run, v0) in [(head, base + ob * sb), (tail, base)] {
+                        for (j, l) in run.iter_mut().enumerate() {
+                            let v = v0 + j * sb;
+                            let l_in = *l;
+                            let (l_out, int) = segment(l_in, u_src[v], sigma_t[v], len, ts);
+                            g[v] = g[v] + int;
+                            if paper_deposit {
+                                if let Some(p) = paper.as_deref_mut() {
+                                    p[v] = p[v] - l_in * (-(sigma_s[v] * len)).exp_m1();
+                                }
+                            }
+                            *l = l_out;
+                        }
+                    }
+                }
+            }
+        }
+        tally.exited += ray.iter().map(|l| l.f()).sum::<f64>();
+        (ray, tally)
+    }
+
+    /// The radiances leaving the far face of direction `i` in a single order-0 sweep with
+    /// boundary radiance `l_bc` and no source (test T4), in lattice order.
+    pub fn exit_radiance(&self, i: usize, l_bc: f64) -> Vec<T> {
+        let mut g = vec![T::zero(); self.grid.len()];
+        let zero = vec![T::zero(); self.grid.len()];
+        self.sweep(i, &zero, l_bc, 0, &mut g, None).0
+    }
+
+    /// Σ A·∫L ds per voxel for direction `i` divided by h³, in one order-0 sweep of a unit
+    /// boundary radiance: the track volume / h³ of T3 when σt = 0.
+    pub fn track_volume(&self, i: usize) -> Vec<f64> {
+        let mut g = vec![T::zero(); self.grid.len()];
+        let zero = vec![T::zero(); self.grid.len()];
+        self.sweep(i, &zero, 1.0, 0, &mut g, None);
+        let w = self.area(i) / self.grid.dl.powi(3);
+        g.iter().map(|x| x.f() * w).collect()
+    }
+
+    /// Runs the scattering orders (Jacobi by order, LPM Alg 2 with D1, D2, D16) with the
+    /// boundary radiance `boundary`. `observer(order, unshot / unshot after order 0)` sees
+    /// every order.
+    pub fn solve(
+        &self,
+        boundary: &BoundaryLight,
+        mut observer: impl FnMut(usize, f64),
+    ) -> Result<LpmSolution<T>, SolverError> {
+        if boundary.radiance.len() != self.dirs.len() {
+            return Err(SolverError::FieldSize {
+                field: "boundary radiance",
+                expected: self.dirs.len(),
+                got: boundary.radiance.len(),
+            });
+        }
+        let start = std::time::Instant::now();
+        let nv = self.grid.len();
+        let per = self.dirs.per_face();
+        let d_i = self.config.storage_i.count();
+        let (max_orders, rel) = match self.config.orders {
+            Orders::Fixed(k) => (k, None),
+            Orders::Converge { rel, max_orders } => (max_orders, Some(rel)),
+        };
+        let paper = self.config.formulas.deposit == Deposit::Paper;
+        let mut u_prev: Vec<Vec<T>> = (0..CONES).map(|_| self.source.clone()).collect();
+        let mut u_cur: Vec<Vec<T>> = (0..CONES).map(|_| vec![T::zero(); nv]).collect();
+        let mut intensity: Vec<Vec<T>> = (0..d_i).map(|_| self.source.clone()).collect();
+        let mut gbuf: Vec<Vec<T>> = (0..per).map(|_| vec![T::zero(); nv]).collect();
+        let mut pbuf: Vec<Vec<T>> = if paper {
+            (0..per).map(|_| vec![T::zero(); nv]).collect()
+        } else {
+            Vec::new()
+        };
+        let mut phi = vec![T::zero(); nv];
+        let mut phi_orders: Vec<Vec<T>> = Vec::new();
+        let mut tallies: Vec<OrderTally> = Vec::new();
+        let h3 = self.grid.dl.powi(3);
+        let mut stop = Stop::Cap;
+        let mut first_unshot = f64::NAN;
+        for order in 0..max_orders {
+            for u in &mut u_cur {
+                u.fill(T::zero());
+            }
+            let mut phi_p = vec![T::zero(); nv];
+            let mut tally = OrderTally::default();
+            for (face, u_global) in u_prev.iter().enumerate() {
+                let sum_u: f64 = u_global.iter().map(|x| x.f()).sum();
+                let u_x;
+                let u_src: &[T] = if face / 2 == 0 {
+                    u_x = to_x_layout(&self.grid, u_global);
+                    &u_x
+                } else {
+                    u_global
+                };
+                let dirs0 = face * per;
+                let sweeps: Vec<SweepTally> = if paper {
+                    gbuf.par_iter_mut()
+                        .zip(pbuf.par_iter_mut())
+                        .enumerate()
+                        .map(|(k, (g, p))| {
+                            g.fill(T::zero());
+                            p.fill(T::zero());
+                            let i = dirs0 + k;
+                            self.sweep(i, u_src, boundary.radiance[i], order, g, Some(p))
+                                .1
+                        })
+                        .collect()
+                } else {
+                    gbuf.par_iter_mut()
+                        .enumerate()
+                        .map(|(k, g)| {
+                            g.fill(T::zero());
+                            let i = dirs0 + k;
+                            self.sweep(i, u_src, boundary.radiance[i], order, g, None).1
+                        })
+                        .collect()
+                };
+                for (k, s) in sweeps.iter().enumerate() {
+                    let i = dirs0 + k;
+                    let w = self.area(i) * self.dirs.dirs[i].solid_angle;
+                    tally.injected += w * s.injected;
+                    tally.exited += w * s.exited;
+                    tally.emitted +=
+                        w * self.grid.dl * self.path_factor(i) / self.dirs.dirs[i].cos_axis * sum_u;
+                }
+                let (dep, abs) =
+                    self.collect(face, &gbuf, &pbuf, &mut u_cur, &mut intensity, &mut phi_p);
+                tally.scattered += dep * h3;
+                tally.absorbed += abs * h3;
+            }
+            std::mem::swap(&mut u_prev, &mut u_cur);
+            for (t, p) in phi.iter_mut().zip(&phi_p) {
+                *t = *t + *p;
+            }
+            if self.config.keep_orders {
+                phi_orders.push(phi_p);
+            }
+            tally.unshot = tally.scattered;
+            let finite = [tally.injected, tally.exited, tally.emitted, tally.scattered]
+                .iter()
+                .all(|x| x.is_finite());
+            tallies.push(tally);
+            if order == 0 {
+                first_unshot = tally.unshot;
+            }
+            let measure = tally.unshot / first_unshot;
+            observer(order, measure);
+            if !finite {
+                stop = Stop::NonFinite;
+                break;
+            }
+            if let Some(rel) = rel {
+                if tally.unshot <= rel * first_unshot || tally.unshot.is_nan() {
+                    stop = Stop::Converged;
+                    break;
+                }
+            }
+        }
+        let allocated = (u_prev.len() + u_cur.len() + intensity.len() + gbuf.len() + pbuf.len())
+            * nv
+            + phi.len()
+            + phi_orders.len() * nv
+            + self.sigma_t.len()
+            + self.sigma_s.len()
+            + self.sigma_t_x.len()
+            + self.sigma_s_x.len()
+            + self.source.len();
+        let memory = Memory {
+            formula: super::memory_bytes(&self.grid, &self.config, std::mem::size_of::<T>() as u64),
+            resident_measured: (allocated * std::mem::size_of::<T>()) as u64
+                + self
+                    .tables
+                    .iter()
+                    .map(|t| {
+                        t.segs.capacity() * std::mem::size_of::<super::geometry::Seg>()
+                            + t.start.capacity() * std::mem::size_of::<usize>()
+                    })
+                    .sum::<usize>() as u64,
+        };
+        Ok(LpmSolution {
+            grid: self.grid,
+            intensity,
+            unshot: u_prev,
+            phi,
+            phi_orders,
+            orders: tallies.len(),
+            tallies,
+            stop,
+            seconds: start.elapsed().as_secs_f64(),
+            memory,
+        })
+    }
+
+    /// The collect step of LPM Eq 4 for the m² directions of `face`: U^{d′} and I get
+    /// A·F^{i,d′}·T^i/(h³|Ω^{d′}|), the order's fluence Σ_i |Ω^i|A∫L ds/h³. Returns the
+    /// deposited Σ_v Σ_d′ ΔU^{d′}|Ω^{d′}| and the absorbed Σ_v σa Δφ (both per h³).
+    // One voxel index addresses the T buffers and every output slice at once.
+    #[allow(clippy::needless_range_loop)]
+    fn collect(
+        &self,
+        face: usize,
+        gbuf: &[Vec<T>],
+        pbuf: &[Vec<T>],
+        u_cur: &mut [Vec<T>],
+        intensity: &mut [Vec<T>],
+        phi_p: &mut [T],
+    ) -> (f64, f64) {
+        let per = self.dirs.per_face();
+        let h3 = self.grid.dl.powi(3);
+        let paper = !pbuf.is_empty();
+        let wu: Vec<[T; CONES]> = (0..per)
+            .map(|k| {
+                let i = face * per + k;
+                let mut w = [T::zero(); CONES];
+                for (d, wd) in w.iter_mut().enumerate() {
+                    *wd = T::c(self.area(i) * self.phase.coarse(i, d) / (h3 * CONE_SOLID_ANGLE));
+                }
+                w
+            })
+            .collect();
+        let wphi: Vec<T> = (0..per)
+            .map(|k| {
+                let i = face * per + k;
+                T::c(self.area(i) * self.dirs.dirs[i].solid_angle / h3)
+            })
+            .collect();
+        let d_i = intensity.len();
+        let chunk = self.grid.n[0] * self.grid.n[1];
+        let nchunks = self.grid.n[2];
+        let mut slices: Vec<Vec<&mut [T]>> = (0..nchunks).map(|_| Vec::new()).collect();
+        for buf in u_cur.iter_mut().chain(intensity.iter_mut()) {
+            for (ci, c) in buf.chunks_mut(chunk).enumerate() {
+                slices[ci].push(c);
+            }
+        }
+        for (ci, c) in phi_p.chunks_mut(chunk).enumerate() {
+            slices[ci].push(c);
+        }
+        let sixth = T::c(1.0 / 6.0);
+        let parts: Vec<(f64, f64)> = slices
+            .into_par_iter()
+            .enumerate()
+            .map(|(ci, mut sl)| {
+                let (mut dep, mut abs) = (0.0, 0.0);
+                for j in 0..chunk {
+                    let v = ci * chunk + j;
+                    let mut acc = [T::zero(); CONES];
+                    let mut fl = T::zero();
+                    for k in 0..per {
+                        let gk = gbuf[k][v];
+                        fl = fl + wphi[k] * gk;
+                        let src = if paper { pbuf[k][v] } else { gk };
+                        for d in 0..CONES {
+                            acc[d] = acc[d] + wu[k][d] * src;
+                        }
+                    }
+                    let ss = self.sigma_s[v];
+                    let mut total = T::zero();
+                    for d in 0..CONES {
+                        let du = if paper { acc[d] } else { ss * acc[d] };
+                        sl[d][j] = sl[d][j] + du;
+                        if d_i == CONES {
+                            sl[CONES + d][j] = sl[CONES + d][j] + du;
+                        }
+                        total = total + du;
+                    }
+                    if d_i == 1 {
+                        sl[CONES][j] = sl[CONES][j] + total * sixth;
+                    }
+                    sl[CONES + d_i][j] = sl[CONES + d_i][j] + fl;
+                    dep += total.f() * CONE_SOLID_ANGLE;
+                    abs += (self.sigma_t[v] - ss).f() * fl.f();
+                }
+                (dep, abs)
+            })
+            .collect();
+        parts
+            .iter()
+            .fold((0.0, 0.0), |acc, p| (acc.0 + p.0, acc.1 + p.1))
+    }
+}
+
+/// `field` (x fastest) in the x-faces' layout y + n_y(z + n_z x), where the sweep axis x is
+/// slowest and the first lateral axis y contiguous.
+pub fn to_x_layout<T: Copy>(grid: &Grid, field: &[T]) -> Vec<T> {
+    let [nx, ny, nz] = grid.n;
+    let mut out = Vec::with_capacity(field.len());
+    for x in 0..nx {
+        for z in 0..nz {
+            for y in 0..ny {
+                out.push(field[x + nx * (y + ny * z)]);
+            }
+        }
+    }
+    out
+}
+
+/// The inverse of [`to_x_layout`], into `out`.
+pub fn from_x_layout<T: Copy>(grid: &Grid, local: &[T], out: &mut [T]) {
+    let [nx, ny, nz] = grid.n;
+    for x in 0..nx {
+        for z in 0..nz {
+            for y in 0..ny {
+                out[x + nx * (y + ny * z)] = local[y + ny * (z + nz * x)];
+            }
+        }
+    }
+}
+
+impl StorageI {
+    /// The number of I buffers: 1 or 6.
+    pub fn count(self) -> usize {
+        match self {
+            StorageI::One => 1,
+            StorageI::Six => CONES,
+        }
+    }
+}

@@ -1,0 +1,183 @@
+//! Light propagation maps behind the [`Method`] interface: the registry entry `lpm[:paper]`.
+//!
+//! The method takes the pipeline's baked source (its [`LightInput::Baked`]: the problem's
+//! emission q = σs·L_ri + j, the first-collision mode of D13) as U⁰ = q/4π, no boundary
+//! light, and returns φ = Σ_p φ^p, the fluence of the light emitted by q and scattered on:
+//! the fluence of light scattered at least once, as CDA, FLD and LBM return. Light taken
+//! directly from the scene's lights (directional and environment boundary radiance) is the
+//! solver's [`super::BoundaryLight`] and not wired into the pipeline yet.
+//!
+//! **Tolerance.** One order is one step. It stops when the unshot power after an order is at
+//! most [`Tolerance::rel`] × the power deposited by order 0 (D1); that ratio is
+//! [`Solution::last_change`]. At albedo 1 everything unshot would still leave, so the
+//! outflow misses exactly the unshot power: the balance's outflow/source is 1 − O(rel).
+//! `rel` = 0 runs exactly `max_steps` orders (Alg 2's fixed count; the paper's 3).
+//!
+//! Variants: none (the exact formulas) and `paper` (LPM Eqs 3, 4, 6 literally with the zero
+//! wrap: reproduction only, never in the atlas, which takes each family's default).
+//! Parameter: `m` (cells per face edge, default 5: 150 directions).
+
+use super::{BoundaryLight, CpuLpm, Formulas, LpmConfig, Orders, WrapBc};
+use crate::gpu::Timer;
+use crate::method::{
+    Balance, Capabilities, Fluence, LightInput, Method, MethodFamily, Problem, Solution, Tolerance,
+};
+use crate::{Backend, Grid, Precision, Real, SolverError};
+
+/// LPM with its settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LpmMethod {
+    /// The solver settings; `phase` and `orders` are replaced per solve.
+    pub config: LpmConfig,
+}
+
+impl Default for LpmMethod {
+    fn default() -> Self {
+        Self {
+            config: LpmConfig {
+                keep_orders: false,
+                ..LpmConfig::default()
+            },
+        }
+    }
+}
+
+impl LpmMethod {
+    /// The settings of one solve.
+    pub fn config_for(&self, problem: &Problem<'_>, tolerance: &Tolerance) -> LpmConfig {
+        LpmConfig {
+            phase: problem.phase,
+            orders: if tolerance.rel > 0.0 {
+                Orders::Converge {
+                    rel: tolerance.rel,
+                    max_orders: tolerance.max_steps,
+                }
+            } else {
+                Orders::Fixed(tolerance.max_steps)
+            },
+            ..self.config.clone()
+        }
+    }
+
+    fn run<T: Real>(
+        &self,
+        problem: &Problem<'_>,
+        tolerance: &Tolerance,
+        observer: &mut dyn FnMut(usize, f64),
+    ) -> Result<Fluence, SolverError> {
+        let setup = std::time::Instant::now();
+        let cfg = self.config_for(problem, tolerance);
+        let lpm = CpuLpm::<T>::new(&problem.medium.cast(), &cfg)?;
+        let setup_seconds = setup.elapsed().as_secs_f64();
+        let s = lpm.solve(&BoundaryLight::none(&lpm.dirs), observer)?;
+        let first = s.tallies.first().map_or(f64::NAN, |t| t.unshot);
+        let last = s.tallies.last().map_or(f64::NAN, |t| t.unshot / first);
+        let sum = |f: fn(&super::OrderTally) -> f64| s.tallies.iter().map(f).sum::<f64>();
+        let balance = Balance {
+            source: sum(|t| t.injected) + s.tallies.first().map_or(0.0, |t| t.emitted),
+            outflow: sum(|t| t.exited),
+            absorbed: sum(|t| t.absorbed),
+        };
+        Ok(Solution {
+            grid: s.grid,
+            phi: s.phi.iter().map(|x| x.f()).collect(),
+            steps: s.orders,
+            last_change: last,
+            stop: s.stop,
+            seconds: s.seconds,
+            setup_seconds,
+            timer: Timer::WallClock,
+            balance: Some(balance),
+            trace: (),
+        })
+    }
+}
+
+impl Method for LpmMethod {
+    fn name(&self) -> String {
+        if self.config.formulas == Formulas::paper() {
+            "lpm:paper".into()
+        } else {
+            "lpm".into()
+        }
+    }
+
+    fn capabilities(&self) -> Capabilities {
+        Capabilities {
+            gpu: false,
+            f64: true,
+            volume_source: true,
+            anisotropic: true,
+            lights: LightInput::Baked,
+            conserves_energy: true,
+        }
+    }
+
+    fn solve(
+        &self,
+        backend: &Backend<'_>,
+        problem: &Problem<'_>,
+        tolerance: &Tolerance,
+        observer: &mut dyn FnMut(usize, f64),
+    ) -> Result<Fluence, SolverError> {
+        tolerance.validate()?;
+        match backend {
+            Backend::Cpu(Precision::F64) => self.run::<f64>(problem, tolerance, observer),
+            Backend::Cpu(Precision::F32) => self.run::<f32>(problem, tolerance, observer),
+            Backend::Gpu(_) => Err(SolverError::Unsupported(format!(
+                "{}: the GPU kernels are not implemented yet (CPU only)",
+                self.name()
+            ))),
+        }
+    }
+
+    fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {
+        // Per order: each of the 6m² sweeps reads σt and U and reads and writes T once per
+        // voxel (sub-segments of one voxel hit the same cache lines); each of the 6 collects
+        // reads the m² T buffers and σs, σt and reads and writes 6 U, 1 I and φ.
+        let per = self.config.m * self.config.m;
+        let words = 6 * per * 4 + 6 * (per + 2 + 2 * 8);
+        words * grid.len() * precision.bytes()
+    }
+}
+
+/// Light propagation maps (Fattal 2009, Gruson et al. 2012).
+pub const LPM: MethodFamily = MethodFamily {
+    name: "lpm",
+    title: "light propagation maps (discrete ordinates on exact ray tables, order by order)",
+    paper: "Gruson et al., Light Propagation Maps on Parallel Graphics Architectures (LPM Eqs 1–6, Algorithms 1–2)",
+    variants: "paper",
+    params: &[(
+        "m",
+        "propagation cells per cube-face edge, 1..=64 (default 5: 150 directions, the paper's 25 per face)",
+    )],
+    build: |variant, params| {
+        let mut method = LpmMethod::default();
+        match variant {
+            None => {}
+            Some("paper") => {
+                method.config.formulas = Formulas::paper();
+                method.config.wrap = WrapBc::Zero;
+            }
+            Some(v) => {
+                return Err(SolverError::UnknownName {
+                    what: "variant of lpm",
+                    got: v.to_string(),
+                    known: "paper".into(),
+                });
+            }
+        }
+        if let Some(m) = params.get("m") {
+            if !(m.is_finite() && m >= 0.0 && m.fract() == 0.0) {
+                return Err(SolverError::BadParameter {
+                    name: "m",
+                    value: m,
+                    reason: "must be a whole number of cells per face edge",
+                });
+            }
+            method.config.m = m as usize;
+        }
+        method.config.validate()?;
+        Ok(Box::new(method))
+    },
+};

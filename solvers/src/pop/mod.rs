@@ -1,0 +1,569 @@
+//! Principal-ordinates propagation (Elek, Ritschel, Dachsbacher, Seidel, *Principal-Ordinates
+//! Propagation*, Computers & Graphics 45, 2014; "POP Eq N"), CPU core. The OCR copy garbles
+//! Eqs 2–4 and 6; they are used as rebuilt in `specs/pop.md` (§1.6), whose decisions D1… and
+//! tests T1… are cited below.
+//!
+//! * [`PopMedium`]: σs, σa per channel per voxel, g per channel (g ∈ [0, 1]).
+//! * [`Ordinate`]: a collimated beam (d, E, a). [`Ordinate::directional`] for a directional
+//!   light; [`environment_ordinates`] for an environment (Sec 5.1).
+//! * [`PropagationGrid`] ([`grid`]): the grid aligned with one ordinate, and the medium
+//!   resampled into it.
+//! * [`CpuPop`] ([`cpu`]): the propagation state of one ordinate (rayon, `f32`/`f64`).
+//! * [`solve`]: every ordinate, [`PopSolution::fluence_on`] gathers φ onto a world grid.
+//!
+//! ## The equations (POP Sec 4, as rebuilt)
+//! Per cell i and channel: magnitude L_i and anisotropy a_i; the radiance is
+//! L(x_i, ω) = L_i·f_hg(ω·d, a_i) with f_hg(μ, g) = (1 − g²)/(4π(1 + g² − 2gμ)^{3/2}).
+//!
+//! * **Eq 1**: F_hg(μ, g) = ∫_{−1}^{μ} f_hg dμ′; with the azimuth, G = 2πF_hg has the closed
+//!   form G(μ, a) = (1 − a)(1 + μ)/(s(1 + a + s)), s = √(1 + a² − 2aμ) ([`cumulative`]).
+//! * **Eqs 2–3**: ΔL_{src→dst} = L_src·T_{src→dst}·|φ₁ − φ₂|(F(cos θ₁) − F(cos θ₂)) over the
+//!   patches (θ₁, θ₂, |φ₁ − φ₂|) = (0, π/4, 2π) front, (π/4, 3π/4, π/2) each lateral
+//!   neighbour, (3π/4, π, 2π) back: the fractions 1 − G(1/√2, a), (G(1/√2, a) − G(−1/√2, a))/4
+//!   and G(−1/√2, a) ([`fractions`]); T = exp(−σ̄a z), absorption only.
+//! * **Eq 4**: Δa_{src→dst} = a_src·ḡ^{σ̄s z} ([`decay`]).
+//! * **Eq 5**: L_dst = Σ_src ΔL; **Eq 6**: a_dst = Σ ΔL·Δa / Σ ΔL.
+//! * **Eq 7**: L_acc^{m+1} = L_acc^m + L^{m+1}(x_i, c − x_i); **Eq 8**: … + L^{m+1}_i·f_hg(u, a^{m+1}_i),
+//!   u = d·(view direction).
+//! * Ping-pong L^m → L^{m+1} over all cells; stop when every L^m is below ε_L (Sec 5.4) or at
+//!   a fixed M (the paper: 10–20).
+//!
+//! **Cost** (`benches/benches/pop.rs`, the Fig 14 setting: 64 ordinates × 20³ × 10
+//! iterations, RGB, `results/bench/pop.csv`), on the 2 cores shared with other jobs (load
+//! average 11 during the run): propagation 492 ms f32 (1.04·10⁷ RGB cell-updates/s, the
+//! issue's target of ≤ 0.5 s met by a hair on a loaded machine) and 620 ms f64
+//! (8.3·10⁶/s); the whole solve with grid builds and resampling 653 / 1215 ms. Effective
+//! 2.9 / 4.6 GB/s = 0.11 / 0.27 of the same run's STREAM-rule triad: compute-bound (two
+//! square roots and divisions per cell and channel for the fractions, the six-term ledger).
+//! Cells without light skip the fraction pass (a wavefront fills one slice per iteration).
+//!
+//! The isotropic residuum (Eqs 9–10), radial grids (Sec 6), the 2× merge with joint
+//! bilateral upsampling (Secs 4.4, 5.3), importance propagation (Sec 5.2) and the GPU
+//! kernel are not in this module yet.
+//!
+//! ## Decisions where the paper is silent
+//! Each with what pins it (tests in `pop/tests.rs`; all pass in f64 and, where named, f32).
+//!
+//! * **Initialisation (D1).** Sec 4.1 fills every cell with L_in·T_i and a = 1. Under Eqs 5
+//!   and 7 that counts the beam (j+1) times in cell j ([`Init::PaperPerCell`], kept as a
+//!   variant: `t6_…` measures φ_j/exact = j+1 to 10⁻⁹ in a pure absorber). The default
+//!   [`Init::EntrySlice`] injects a wavefront into slice k = 0 only: L = E·e^{−σa Δx/2},
+//!   a = a_n·g^{σs Δx/2}. A pure absorber then gives φ = E·e^{−σa x} at every cell centre to
+//!   10⁻¹² (f64; 10⁻⁵ f32) and the run converges in exactly N_d iterations (`t5_…`).
+//! * **Frame and size (D2, D3).** The frame across d is Duff et al.'s branch-free basis
+//!   ([`frame`]; orthonormal and right-handed for 200 random d and ±z; d = +x gives
+//!   t₁ = −z, t₂ = +y so an axis ordinate's cells are the medium's voxels,
+//!   `frames_are_…`). N³ cubic cells, Δx = the largest extent of the medium's box along
+//!   the three frame axes / N, centred on the box: a diagonal ordinate's cells are up to √3
+//!   larger. T12 (`t12_rotation_invariance`: homogeneous ball, σs = 4, σa = 0.4, g = 0.9, 20³,
+//!   converged to 10⁻⁶) measures what that costs: relative L2 of the world fluence vs the
+//!   d = x̂ run of 0.023 (x̂ with its frame turned 45°, cells √2 larger), 0.026 and 0.024
+//!   ((1,1,0)/√2, plain and turned), 0.026 and 0.026 ((1,1,1)/√3); bound 0.035 (spec's 5 %).
+//! * **Resampling (D4).** MIP level ℓ = ⌈log₂(Δx/Δx_medium)⌉ (capped at the coarsest
+//!   level with one voxel), box filter of σs and σa separately (∫σs dV, ∫σa dV conserved
+//!   to 10⁻¹², levels 0–2), then clamped trilinear at the rotated cell centres, vacuum
+//!   outside the medium's box (`resampling_…`). g is one per channel (the project's scenes
+//!   have one phase function), so the σs-weighted g of D4/D6 is moot.
+//! * **Pair coefficients (D6, V9).** σ̄a and σ̄s are the arithmetic means of src and dst,
+//!   z = Δx; T and γ = ḡ^{σ̄s z} are precomputed per cell link once per grid (the medium
+//!   does not change between iterations). γ takes the branches of V16 (σ̄s z = 0 → 1 even
+//!   at g = 0; g = 0 → 0): `t4_…` runs g ∈ {0, 1}, vacuum cells and σΔx ∈ [10⁻⁶, 10³] and
+//!   finds L ≥ 0, a ∈ [0, 1] and finite accumulators in f32 and f64.
+//! * **Boundaries (ours).** Nothing enters except by injection. Light leaving the grid goes
+//!   through a vacuum ghost cell: the link's σ̄a is half the cell's, so the exit carries
+//!   e^{−σa Δx/2} and the rest is absorbed. With the D1 half cell at entry, a pure-absorber
+//!   slab transmits exactly e^{−τ} (`t5_…`). [`Lateral::Periodic`] makes a laterally infinite
+//!   slab for the adding–doubling comparisons (T7).
+//! * **Eq 6 without light.** A cell that receives nothing gets a = 0; a is clamped to
+//!   [0, 1] against rounding.
+//! * **Bookkeeping (D5).** Per channel a [`Ledger`]: injected, absorbed (1 − T of every
+//!   transfer), exits through the entry face (R), far face (T) and lateral faces, in flight
+//!   (Σ L Δx²), each summed in f64 per slice and then in slice order. Accumulators per cell:
+//!   φ = Σ_m L^m (the initial L⁰ included), J = Σ_m L^m a^m (flux along d; ⟨μ⟩ = J/φ) and
+//!   L_acc. `t3_…`: injected = absorbed + exits + in flight at every one of 300 iterations
+//!   on random media (vacuum, 10⁴ contrast, albedo 0–1, g ∈ {0, 0.5, 0.9, 0.99}, skew d) to
+//!   10⁻¹² (f64) and 10⁻⁵ (f32), and the power in flight never rises.
+//! * **Eq 8 (D7, D8).** u = d·(c − x_i)/|c − x_i| ([`Observer::Point`]) or d·w
+//!   ([`Observer::Direction`]). Default [`Eq8::PhaseConvolved`] accumulates
+//!   L^m f_hg(u, a^m g), the in-scattered lobe; [`Eq8::Literal`] uses a^m as printed. Both
+//!   clamp the lobe to ≤ 1 − 10⁻⁴ and evaluate f_hg as (1 − g)(1 + g)/((1 − g)² + 2g(1 − μ))^{3/2}/4π,
+//!   which is finite in f32 where the expanded denominator cancels to ≤ 0 (`t2_…`). Which
+//!   reading is closer to the path tracer (T23) is not measured yet.
+//! * **Stopping (D9).** R^m/P_inj < ε_L in every channel, where R^m is the power in flight
+//!   (default ε_L = the precision's `DEFAULT_TOLERANCE`, 10⁻⁶ f64, 10⁻⁴ f32); ε_L = 0 runs
+//!   the paper's fixed M ([`PopConfig::fixed`]); a run also stops when nothing is left.
+//! * **Environment (D10, D11).** Spherical Fibonacci directions; a latitude–longitude map
+//!   rasterised with exact texel solid angles and first moments, each texel assigned to the
+//!   nearest ordinate (its Voronoi cell): E_n = Σ L Ω. [`Prefilter::Voronoi`] (default)
+//!   takes d_n = −(radiance-weighted centroid) and a_n = |∫Lω|/∫L over the cell, so Σ E_n = ∫L dω
+//!   and Σ E_n a_n d_n = −∫Lω dω. `t11_…`: both to 10⁻¹² for a constant environment
+//!   (N = 8…216), the gradient 1 + ω_z/2 to 10⁻⁴, and a_n within 2 % of the cap value
+//!   1 − 1/N for N ≥ 27. The paper's heuristic ([`Prefilter::Heuristic`], β) and no
+//!   prefilter ([`Prefilter::None`]) are variants.
+//! * **Determinism.** Every cell is a pure gather; sums are per slice then in slice order:
+//!   results are bitwise equal on 1 and 3 threads (`results_do_not_depend_…`).
+//!
+//! ## What the scheme does (measured; the spec's prototype reproduced)
+//! Once a lobe has isotropised (a → 0, fractions 0.146/0.177/0.146) POP is a lattice random
+//! walk that moves one cell per iteration: variance (1 − 1/√2)·m Δx² along d and
+//! (1/√2)/2·m Δx² across, to 10⁻¹⁰ (`t8_…`, 64³ vacuum). Its mean free path is set by the
+//! grid, not by σs or g:
+//! * laterally periodic slab, albedo 1, g = 0: T = 1/(N+1), R = N/(N+1) to 10⁻⁹ for
+//!   N ∈ {4, 8, 16} and σs ∈ {0.5, 4, 32} alike (`t7_…`); slab τ = 4, albedo 1: R = 0.00162
+//!   (N = 8) and 0.00058 (N = 16) at g = 0.9 (the spec's adding–doubling value: 0.122), 0.642 at g = 0.5,
+//!   N = 16 (spec AD: 0.51) (`t19_slab_…`);
+//! * the Fig 12 cube (unit cube, σs = 4, albedo 1, 16³, d = +x), converged: exits R/T/side
+//!   0.6706/0.0033/0.3261 (g = 0; independent of σs ∈ {0.5, 4, 32}), 0.0354/0.1382/0.8264
+//!   (g = 0.7), 0.00021/0.9350/0.0648 (g = 0.96); volume-mean φ 1.030, 3.516, 1.058 (path
+//!   tracer in the spec: 0.86, 0.89, 0.95); at the paper's M = 16: 0.471, 0.942, 1.021; centre
+//!   ⟨μ⟩ 0.318 (M = 16) and 0.081 (converged) at g = 0.7 vs the path tracer's 0.62, and 0.913
+//!   at g = 0.96 vs 0.91 (`t19_cube_…`; every figure within 1 % or the rounding of the
+//!   spec's prototype value);
+//! * convergence (g = 0.7): R^M/P_inj = 0.890, 0.753, 0.556, 0.308, 0.101, 1.13·10⁻²,
+//!   1.39·10⁻⁴ at M = 8…512; 10⁻³ at 397 and 10⁻⁶ at 800 iterations (16³); 3008 at 32³
+//!   (ratio 3.760, ∝ N²), where the volume-mean φ grows to 6.07 (`t21_…`): the scheme does
+//!   not converge to transport under grid refinement (spec W2).
+//! * constant environment on a ball (σs = 4, albedo 0.9, g = 0.9, 12³, M = 36):
+//!   ‖φ_N − φ_216‖/‖φ_216‖ = 0.139, 0.033, 0.011, 0.0033 for N = 8, 27, 64, 125 (`t22_…`).
+
+pub mod cpu;
+pub mod env;
+pub mod grid;
+pub mod kernel;
+#[cfg(test)]
+mod tests;
+
+pub use cpu::{CpuPop, Ledger};
+pub use env::{Prefilter, environment_ordinates, fibonacci};
+pub use grid::{PropagationGrid, frame};
+pub use kernel::{Fractions, cumulative, decay, fractions, hg};
+
+use crate::method::Stop;
+use crate::{Grid, Medium, Real, SolverError};
+use rayon::prelude::*;
+
+/// Initialisation of a propagation grid (spec §1.5, V1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Init {
+    /// Decision D1: a wavefront injected into the entry slice k = 0 only, L = E·e^{−σa Δx/2},
+    /// a = a_n·g^{σs Δx/2}. Energy-exact.
+    #[default]
+    EntrySlice,
+    /// POP Sec 4.1 as printed: every cell L_i = E·T_i (T_i with σt to the cell centre along
+    /// d), a = a_n. Counts the beam (j+1) times in cell j (test T6).
+    PaperPerCell,
+}
+
+/// Which lobe Eq 8 accumulates towards the observer (spec D8).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Eq8 {
+    /// In-scattered radiance: Σ_m L^m f_hg(u, a^m·g) (HG self-convolution).
+    #[default]
+    PhaseConvolved,
+    /// POP Eq 8 as printed: Σ_m L^m f_hg(u, a^m), a clamped to ≤ 1 − 10⁻⁴.
+    Literal,
+}
+
+/// The lateral faces of a propagation grid (the faces parallel to d).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Lateral {
+    /// Light leaving through a lateral face is lost (the paper).
+    #[default]
+    Open,
+    /// Laterally periodic: a slab of infinite extent (tests T7, T19 vs adding–doubling).
+    Periodic,
+}
+
+/// The observer of Eq 8 (spec D7: u = d·(direction from the cell to the observer)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Observer {
+    /// A camera at this world position (perspective).
+    Point([f64; 3]),
+    /// A camera infinitely far along this unit direction (orthographic).
+    Direction([f64; 3]),
+}
+
+/// One principal ordinate: a collimated beam along `direction` with `irradiance` measured
+/// perpendicular to it and initial lobe anisotropy `anisotropy` (1: a directional light;
+/// lower after prefiltering, Sec 5.1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ordinate {
+    /// Unit direction of travel d_n.
+    pub direction: [f64; 3],
+    /// E_n, irradiance on a plane perpendicular to d_n (every channel).
+    pub irradiance: f64,
+    /// a_n ∈ [0, 1].
+    pub anisotropy: f64,
+}
+
+impl Ordinate {
+    /// A directional light: one ordinate with a = 1 (Sec 5, spec §1.2). Fails on a zero or
+    /// non-finite direction or an irradiance that is not finite and ≥ 0.
+    pub fn directional(direction: [f64; 3], irradiance: f64) -> Result<Self, SolverError> {
+        let o = Self {
+            direction: grid::normalise("ordinate.direction", direction)?,
+            irradiance,
+            anisotropy: 1.0,
+        };
+        o.validate()?;
+        Ok(o)
+    }
+
+    /// Checks the fields (unit direction, E ≥ 0 finite, a ∈ [0, 1]).
+    pub fn validate(&self) -> Result<(), SolverError> {
+        let len = grid::dot(self.direction, self.direction).sqrt();
+        if (len - 1.0).abs().is_nan() || (len - 1.0).abs() > 1e-9 {
+            return Err(SolverError::BadParameter {
+                name: "ordinate.direction",
+                value: len,
+                reason: "must be a unit vector (use Ordinate::directional to normalise)",
+            });
+        }
+        if !(self.irradiance.is_finite() && self.irradiance >= 0.0) {
+            return Err(SolverError::BadParameter {
+                name: "ordinate.irradiance",
+                value: self.irradiance,
+                reason: "must be finite and ≥ 0",
+            });
+        }
+        if !(0.0..=1.0).contains(&self.anisotropy) {
+            return Err(SolverError::BadParameter {
+                name: "ordinate.anisotropy",
+                value: self.anisotropy,
+                reason: "POP lobes have a ∈ [0, 1]",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The medium as POP reads it: σs and σa per channel per voxel of one grid, and the
+/// Henyey–Greenstein g of each channel (the project's phase is one per scene; POP's per-cell
+/// g, Sec 4, is not needed by any scene here).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PopMedium {
+    /// The medium's voxel grid.
+    pub grid: Grid,
+    /// σs per channel per voxel.
+    pub sigma_s: Vec<Vec<f64>>,
+    /// σa per channel per voxel.
+    pub sigma_a: Vec<Vec<f64>>,
+    /// g per channel, in [0, 1] (negative g is excluded, POP Sec 4).
+    pub g: Vec<f64>,
+}
+
+impl PopMedium {
+    /// One channel per medium (all on the same grid), with phase parameter `g[c]` each.
+    pub fn new(media: &[Medium<f64>], g: &[f64]) -> Result<Self, SolverError> {
+        let first = media.first().ok_or(SolverError::BadParameter {
+            name: "channels",
+            value: 0.0,
+            reason: "at least one channel medium is needed",
+        })?;
+        if g.len() != media.len() {
+            return Err(SolverError::FieldSize {
+                field: "g (one per channel)",
+                expected: media.len(),
+                got: g.len(),
+            });
+        }
+        let mut sigma_s = Vec::with_capacity(media.len());
+        let mut sigma_a = Vec::with_capacity(media.len());
+        for m in media {
+            m.validate()?;
+            if m.grid != first.grid {
+                return Err(SolverError::Unsupported(
+                    "POP channel media must share one grid".into(),
+                ));
+            }
+            sigma_s.push(
+                m.sigma_t
+                    .iter()
+                    .zip(&m.albedo)
+                    .map(|(t, a)| t * a)
+                    .collect(),
+            );
+            sigma_a.push(
+                m.sigma_t
+                    .iter()
+                    .zip(&m.albedo)
+                    .map(|(t, a)| t * (1.0 - a))
+                    .collect(),
+            );
+        }
+        let out = Self {
+            grid: first.grid,
+            sigma_s,
+            sigma_a,
+            g: g.to_vec(),
+        };
+        out.validate()?;
+        Ok(out)
+    }
+
+    /// A homogeneous single-channel medium on `grid`.
+    pub fn homogeneous(
+        grid: Grid,
+        sigma_s: f64,
+        sigma_a: f64,
+        g: f64,
+    ) -> Result<Self, SolverError> {
+        let out = Self {
+            grid,
+            sigma_s: vec![vec![sigma_s; grid.len()]],
+            sigma_a: vec![vec![sigma_a; grid.len()]],
+            g: vec![g],
+        };
+        out.validate()?;
+        Ok(out)
+    }
+
+    /// Number of channels.
+    pub fn channels(&self) -> usize {
+        self.g.len()
+    }
+
+    /// Checks sizes and ranges: σs, σa finite ≥ 0; g ∈ [0, 1] (typed error for g < 0,
+    /// which POP does not support: Eq 4 would alternate the sign of a).
+    pub fn validate(&self) -> Result<(), SolverError> {
+        if self.g.is_empty() {
+            return Err(SolverError::BadParameter {
+                name: "channels",
+                value: 0.0,
+                reason: "at least one channel is needed",
+            });
+        }
+        for &g in &self.g {
+            if !(0.0..=1.0).contains(&g) {
+                return Err(SolverError::BadParameter {
+                    name: "phase.g",
+                    value: g,
+                    reason: "POP supports g ∈ [0, 1] only (Sec 4: negative g is excluded; Eq 4 needs g ≥ 0)",
+                });
+            }
+        }
+        for (field, set) in [("sigma_s", &self.sigma_s), ("sigma_a", &self.sigma_a)] {
+            if set.len() != self.g.len() {
+                return Err(SolverError::FieldSize {
+                    field,
+                    expected: self.g.len(),
+                    got: set.len(),
+                });
+            }
+            for f in set {
+                if f.len() != self.grid.len() {
+                    return Err(SolverError::FieldSize {
+                        field,
+                        expected: self.grid.len(),
+                        got: f.len(),
+                    });
+                }
+                if let Some((index, &value)) = f
+                    .iter()
+                    .enumerate()
+                    .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+                {
+                    return Err(SolverError::FieldValue {
+                        field,
+                        index,
+                        value,
+                        range: "[0, ∞) and finite",
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Settings of a POP solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PopConfig {
+    /// Cells per axis of every propagation grid (N³, spec D3). Paper: 8–20.
+    pub n: usize,
+    /// Initialisation (D1).
+    pub init: Init,
+    /// Eq 8 lobe (D8); only used with an observer.
+    pub eq8: Eq8,
+    /// Lateral faces.
+    pub lateral: Lateral,
+    /// Observer of Eq 8; `None` accumulates no view-dependent radiance.
+    pub observer: Option<Observer>,
+    /// Stop when R^m/P_inj < tolerance in every channel (D9); 0 runs exactly
+    /// `max_iterations` (the paper's fixed M) unless all light has left.
+    pub tolerance: f64,
+    /// Iteration cap M.
+    pub max_iterations: usize,
+}
+
+impl PopConfig {
+    /// D1 init, phase-convolved Eq 8, open faces, no observer, the precision's default
+    /// tolerance (10⁻⁶ f64, 10⁻⁴ f32, spec D9), at most 100 000 iterations.
+    pub fn new<T: Real>(n: usize) -> Self {
+        Self {
+            n,
+            init: Init::EntrySlice,
+            eq8: Eq8::PhaseConvolved,
+            lateral: Lateral::Open,
+            observer: None,
+            tolerance: T::DEFAULT_TOLERANCE,
+            max_iterations: 100_000,
+        }
+    }
+
+    /// The paper's fixed iteration count M (no convergence test).
+    pub fn fixed<T: Real>(n: usize, m: usize) -> Self {
+        Self {
+            tolerance: 0.0,
+            max_iterations: m,
+            ..Self::new::<T>(n)
+        }
+    }
+
+    /// Checks `n`, the tolerance and, for `ordinates` grids in precision `T` on `channels`
+    /// channels, the memory budget ([`crate::budget`]).
+    pub fn validate<T: Real>(&self, ordinates: usize, channels: usize) -> Result<(), SolverError> {
+        if self.n < 2 {
+            return Err(SolverError::BadParameter {
+                name: "pop.n",
+                value: self.n as f64,
+                reason: "a propagation grid needs at least 2 cells per axis",
+            });
+        }
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+            return Err(SolverError::BadParameter {
+                name: "pop.tolerance",
+                value: self.tolerance,
+                reason: "must be finite and ≥ 0",
+            });
+        }
+        if let Some(Observer::Direction(w)) = self.observer {
+            grid::normalise("pop.observer", w)?;
+        }
+        crate::budget::check(
+            format!("POP: {ordinates} ordinate grids of n = {}", self.n),
+            Self::bytes::<T>(self.n, ordinates, channels),
+        )?;
+        Ok(())
+    }
+
+    /// Upper bound of the bytes a solve holds: the working state of one grid per rayon
+    /// thread and the accumulators of every ordinate.
+    pub fn bytes<T: Real>(n: usize, ordinates: usize, channels: usize) -> u64 {
+        let size = std::mem::size_of::<T>() as u64;
+        let cells = crate::budget::bytes(&[n, n, n, channels], 1);
+        let working = cells.saturating_mul(size * 15 + 16 + 8);
+        let threads = (rayon::current_num_threads().min(ordinates.max(1))) as u64;
+        let kept = cells.saturating_mul(size * cpu::ACC as u64);
+        working
+            .saturating_mul(threads)
+            .saturating_add(kept.saturating_mul(ordinates as u64))
+    }
+}
+
+/// What one ordinate's propagation produced.
+#[derive(Debug, Clone)]
+pub struct OrdinateRun<T> {
+    /// The ordinate.
+    pub ordinate: Ordinate,
+    /// Its grid.
+    pub grid: PropagationGrid,
+    /// Channels.
+    pub channels: usize,
+    /// `[cell][channel][φ, J, L_acc]`: fluence Σ L^m, flux along d Σ L^m a^m, and the
+    /// Eq 8 radiance (0 without observer).
+    pub acc: Vec<T>,
+    /// Where the power went, per channel.
+    pub ledger: Vec<Ledger>,
+    /// R^m/P_inj (max over channels) after each step.
+    pub history: Vec<f64>,
+    /// Steps run.
+    pub steps: usize,
+    /// Why it stopped.
+    pub stop: Stop,
+}
+
+impl<T: Real> OrdinateRun<T> {
+    /// φ of channel `ch` at world point `p`: clamped trilinear in the rotated grid, 0
+    /// outside it (spec D13's gather, on any target grid).
+    pub fn fluence_at(&self, ch: usize, p: [f64; 3]) -> f64 {
+        let stride = self.channels * cpu::ACC;
+        self.grid
+            .interpolate_with(&self.acc, stride, ch * cpu::ACC, p)
+    }
+}
+
+/// All ordinates of a solve.
+#[derive(Debug, Clone)]
+pub struct PopSolution<T> {
+    /// One run per ordinate, in the order given.
+    pub runs: Vec<OrdinateRun<T>>,
+}
+
+impl<T: Real> PopSolution<T> {
+    /// Fluence per channel on `target` (x fastest): Σ over ordinates of the trilinear gather
+    /// of each φ at the voxel centres (spec D13 without the 2× merge and the JBU).
+    pub fn fluence_on(&self, target: &Grid) -> Vec<Vec<f64>> {
+        let nc = self.runs.first().map_or(0, |r| r.channels);
+        (0..nc)
+            .map(|ch| {
+                let mut out = target.sample(|_| 0.0);
+                out.par_iter_mut().enumerate().for_each(|(idx, v)| {
+                    let [i, j, k] = target.coords(idx);
+                    let p = target.center(i, j, k);
+                    *v = self.runs.iter().map(|r| r.fluence_at(ch, p)).sum();
+                });
+                out
+            })
+            .collect()
+    }
+}
+
+/// Propagates every ordinate through `medium` (rayon over ordinates and over the slices of
+/// each grid; the result does not depend on the thread count).
+pub fn solve<T: Real>(
+    medium: &PopMedium,
+    ordinates: &[Ordinate],
+    config: &PopConfig,
+) -> Result<PopSolution<T>, SolverError> {
+    medium.validate()?;
+    if ordinates.is_empty() {
+        return Err(SolverError::BadParameter {
+            name: "ordinates",
+            value: 0.0,
+            reason: "POP needs at least one ordinate (a light)",
+        });
+    }
+    for o in ordinates {
+        o.validate()?;
+    }
+    config.validate::<T>(ordinates.len(), medium.channels())?;
+    let runs = ordinates
+        .par_iter()
+        .map(|o| run_ordinate::<T>(medium, o, config))
+        .collect();
+    Ok(PopSolution { runs })
+}
+
+/// One ordinate: its grid (D2–D3), the medium at the MIP level of D4, init, iterations.
+pub fn run_ordinate<T: Real>(
+    medium: &PopMedium,
+    ordinate: &Ordinate,
+    config: &PopConfig,
+) -> OrdinateRun<T> {
+    let grid = PropagationGrid::over(&medium.grid, ordinate.direction, config.n);
+    let mip = grid::box_filter(medium, grid::mip_level(&medium.grid, grid.dx));
+    let mut pop = CpuPop::<T>::new(grid, &mip, &medium.g, config);
+    pop.inject(ordinate, config.init);
+    let stop = pop.run(config.tolerance, config.max_iterations);
+    OrdinateRun {
+        ordinate: *ordinate,
+        grid,
+        channels: medium.channels(),
+        ledger: pop.ledger().to_vec(),
+        history: pop.history().to_vec(),
+        steps: pop.steps(),
+        stop,
+        acc: pop.accumulators().to_vec(),
+    }
+}
