@@ -251,18 +251,7 @@ fn main() {
         return;
     }
     let header = "backend,device,n,precision,ms_per_step,mlups,effective_gbs,triad_gbs,copy_gbs,ratio_triad,ratio_copy,timer";
-    let mut text = format!("{header}\n");
-    println!("\n{header}");
-    for r in &rows {
-        println!("{}", r.csv());
-        text.push_str(&r.csv());
-        text.push('\n');
-    }
-    println!(
-        "effective bytes: 19 values read + 19 written per site per step; triad counts 3 and copy 2 arrays; GB = 1e9 bytes"
-    );
-    match benches::cli::write_result(CSV_PATH, &text) {
-        Ok(path) => println!("wrote {}", path.display()),
-        Err(e) => eprintln!("error: cannot write {CSV_PATH}: {e}"),
-    }
+    let lines: Vec<String> = rows.iter().map(Row::csv).collect();
+    let note = "effective bytes: 19 values read + 19 written per site per step; triad counts 3 and copy 2 arrays; GB = 1e9 bytes";
+    benches::cli::emit_table(CSV_PATH, header, &lines, note);
 }

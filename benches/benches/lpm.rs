@@ -157,8 +157,7 @@ fn main() {
         return;
     }
     let header = "n,precision,threads,cpu,orders,m,setup_s,rgb_solve_s,subsegments_per_order_channel,mseg_per_s,effective_gbs,triad_gbs,ratio_triad";
-    let mut text = format!("{header}\n");
-    println!("\n{header}");
+    let mut lines = Vec::new();
     for r in &rows {
         let gbs = r.bytes as f64 / r.seconds / 1e9;
         let line = format!(
@@ -175,15 +174,8 @@ fn main() {
             r.triad_gbs,
             gbs / r.triad_gbs
         );
-        println!("{line}");
-        text.push_str(&line);
-        text.push('\n');
+        lines.push(line);
     }
-    println!(
-        "targets (issue 16 acceptance 3): 64^3 RGB f32 3 orders <= 1.0 s on 2 cores, 128^3 <= 8 s; mseg_per_s counts sub-segments of all three channels"
-    );
-    match benches::cli::write_result(CSV_PATH, &text) {
-        Ok(path) => println!("wrote {}", path.display()),
-        Err(e) => eprintln!("error: cannot write {CSV_PATH}: {e}"),
-    }
+    let note = "targets (issue 16 acceptance 3): 64^3 RGB f32 3 orders <= 1.0 s on 2 cores, 128^3 <= 8 s; mseg_per_s counts sub-segments of all three channels";
+    benches::cli::emit_table(CSV_PATH, header, &lines, note);
 }

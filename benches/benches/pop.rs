@@ -207,18 +207,8 @@ fn main() {
         return;
     }
     let header = "backend,threads,precision,ordinates,n,iterations,propagation_ms,solve_ms,cell_updates_per_s,effective_gbs,triad_gbs,copy_gbs,stream_triad_gbs,ratio_triad,ratio_copy,ratio_stream_triad";
-    let mut text = format!("{header}\n");
-    println!("\n{header}");
-    for r in &rows {
-        println!("{r}");
-        text.push_str(r);
-        text.push('\n');
-    }
-    println!(
+    let note = format!(
         "effective bytes: {BYTES_PER_UPDATE_VALUES} values per cell and channel per update, RGB; target (issue 17): propagation <= 500 ms on 2 cores (>= 1e7 updates/s)"
     );
-    match benches::cli::write_result(CSV_PATH, &text) {
-        Ok(path) => println!("wrote {}", path.display()),
-        Err(e) => eprintln!("error: cannot write {CSV_PATH}: {e}"),
-    }
+    benches::cli::emit_table(CSV_PATH, header, &rows, &note);
 }

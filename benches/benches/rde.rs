@@ -279,21 +279,12 @@ fn main() {
         return;
     }
     let header = "backend,device,n,precision,ms_per_step,ns_per_voxel,effective_gbs,triad_gbs,copy_gbs,ratio_triad,ratio_copy,triad_dram_gbs,ratio_triad_dram,timer";
-    let mut text = format!("{header}\n");
-    println!("\n{header}");
-    for r in &rows {
-        println!("{}", r.csv());
-        text.push_str(&r.csv());
-        text.push('\n');
-    }
-    println!(
+    let lines: Vec<String> = rows.iter().map(Row::csv).collect();
+    let note = format!(
         "effective bytes: phi, beta, a, s read and phi written once per voxel per step (20 B f32, 40 B f64); triad counts 3 and copy 2 arrays; GB = 1e9 bytes; triad/copy run over the step's footprint, triad_dram over 3 arrays of 4x the largest cache ({} MiB read from sysfs) each; targets (issue 18): cpu f32 128^3 <= 3 ms, 256^3 <= 25 ms, >= 0.4 of triad",
         last_level_cache_bytes()
             .map(|b| (b >> 20).to_string())
             .unwrap_or_else(|| "unknown".into())
     );
-    match benches::cli::write_result(CSV_PATH, &text) {
-        Ok(path) => println!("wrote {}", path.display()),
-        Err(e) => eprintln!("error: cannot write {CSV_PATH}: {e}"),
-    }
+    benches::cli::emit_table(CSV_PATH, header, &lines, &note);
 }

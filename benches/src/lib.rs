@@ -227,6 +227,24 @@ pub mod cli {
             .unwrap_or_else(|| root.join(relative))
     }
 
+    /// Prints a bench's summary table (`header`, then one CSV line per row, then `note`) and
+    /// writes it to `relative` under the workspace root ([`write_result`]); a write error is
+    /// printed, not fatal (the table is on stdout).
+    pub fn emit_table(relative: &str, header: &str, lines: &[String], note: &str) {
+        let mut text = format!("{header}\n");
+        println!("\n{header}");
+        for line in lines {
+            println!("{line}");
+            text.push_str(line);
+            text.push('\n');
+        }
+        println!("{note}");
+        match write_result(relative, &text) {
+            Ok(path) => println!("wrote {}", path.display()),
+            Err(e) => eprintln!("error: cannot write {relative}: {e}"),
+        }
+    }
+
     /// Writes `contents` to `relative` under the workspace root, creating its folder, through
     /// a temporary file renamed into place (a reader never sees half a table).
     pub fn write_result(relative: &str, contents: &str) -> std::io::Result<PathBuf> {

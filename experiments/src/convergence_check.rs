@@ -39,9 +39,8 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use solvers::method::{self, Fluence, MethodRef, Problem, Tolerance};
 use solvers::pipeline::{bake, restrict};
-use solvers::scene::{Effect, Scene, SceneFile};
+use solvers::scene::{Effect, Scene};
 use solvers::{Backend, Medium, Precision};
-use std::path::Path;
 use std::time::Instant;
 
 /// The methods measured by default: CDA, FLD with each limiter, LBM, the steady RDE and the
@@ -178,22 +177,7 @@ pub fn solve_medium(scene: &Scene, with_emission: bool, downsample: usize) -> Re
 
 /// The albedo-1 cube of issue 12 (acceptance 1) with σt·Δl = `tau` on an `n`³ grid.
 pub fn lit_cube(n: usize, tau: f64) -> Result<Scene> {
-    let text = format!(
-        r#"
-format = 1
-[medium]
-generator = "homogeneous"
-params = {{ n = {n}, extent = 1.0, sigma_t = {}, albedo = 1.0 }}
-[[light]]
-type = "directional"
-direction = [0.4, 0.5, -1.0]
-irradiance = 3.0
-"#,
-        tau * n as f64
-    );
-    let file = SceneFile::parse(&text, Path::new("."), Path::new("cube.toml"))
-        .context("the albedo-1 cube")?;
-    Ok(file.scene)
+    solvers::scenes::lit_albedo1_cube(n, tau).context("the albedo-1 cube")
 }
 
 fn cases(args: &Args, quick: bool) -> Result<Vec<Case>> {

@@ -85,3 +85,31 @@ pub fn random_heterogeneous<T: Real>(
     }
     Medium::new(grid, sigma_t, albedo, emission)
 }
+
+/// Issue 12's albedo-1 cube: an `n`³ homogeneous unit cube with σt·Δl = `tau` per voxel,
+/// albedo 1, isotropic, lit by a directional light of irradiance 3 from (0.4, 0.5, −1) (the
+/// convergence and default-stop checks).
+pub fn lit_albedo1_cube(
+    n: usize,
+    tau: f64,
+) -> Result<crate::scene::Scene, crate::scene::SceneFileError> {
+    let text = format!(
+        r#"
+format = 1
+[medium]
+generator = "homogeneous"
+params = {{ n = {n}, extent = 1.0, sigma_t = {}, albedo = 1.0 }}
+[[light]]
+type = "directional"
+direction = [0.4, 0.5, -1.0]
+irradiance = 3.0
+"#,
+        tau * n as f64
+    );
+    let file = crate::scene::SceneFile::parse(
+        &text,
+        std::path::Path::new("."),
+        std::path::Path::new("cube.toml"),
+    )?;
+    Ok(file.scene)
+}

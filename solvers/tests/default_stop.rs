@@ -16,28 +16,10 @@
 
 use solvers::method::{self, Problem, Tolerance};
 use solvers::pipeline::{bake, restrict};
-use solvers::scene::SceneFile;
 use solvers::{Backend, Medium, Precision};
-use std::path::Path;
 
 fn lit_cube(tau: f64) -> (Medium<f64>, solvers::scene::Scene) {
-    let n = 16;
-    let text = format!(
-        r#"
-format = 1
-[medium]
-generator = "homogeneous"
-params = {{ n = {n}, extent = 1.0, sigma_t = {}, albedo = 1.0 }}
-[[light]]
-type = "directional"
-direction = [0.4, 0.5, -1.0]
-irradiance = 3.0
-"#,
-        tau * n as f64
-    );
-    let scene = SceneFile::parse(&text, Path::new("."), Path::new("cube.toml"))
-        .unwrap()
-        .scene;
+    let scene = solvers::scenes::lit_albedo1_cube(16, tau).unwrap();
     let baked = vec![bake::bake(&scene.medium, 0, &scene.lights[0]).unwrap()];
     let q = bake::q_ri(&scene.medium, &baked);
     let m = restrict::restrict(&scene.medium, &q, 1, 1).unwrap();

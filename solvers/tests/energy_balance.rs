@@ -13,15 +13,6 @@
 use solvers::fld::{Boundary, CpuFld, FldConfig, FluxLimiter};
 use solvers::{Grid, Medium, Real};
 
-const LIMITERS: [FluxLimiter; 6] = [
-    FluxLimiter::Cda,
-    FluxLimiter::Sum,
-    FluxLimiter::Max,
-    FluxLimiter::Kershaw,
-    FluxLimiter::Larsen(2.0),
-    FluxLimiter::LevermorePomraning,
-];
-
 /// An n³ emissive albedo-1 cube with σt·Δl = `tau`, inside one layer of vacuum (Δl = 1).
 fn cube<T: Real>(n: usize, tau: f64) -> Medium<T> {
     let grid = Grid::new([n + 2; 3], 1.0).unwrap();
@@ -87,7 +78,7 @@ fn balance<T: Real>(m: &Medium<T>, cfg: &FldConfig) -> (f64, usize, bool) {
 /// (measured: within 2.5·10⁻⁵; the same at 10⁻⁴ in f64).
 #[test]
 fn emission_leaves_through_the_boundary_for_every_limiter_and_precision() {
-    for lim in LIMITERS {
+    for lim in FluxLimiter::ALL {
         for tau in [0.01, 1.0, 100.0] {
             let cfg = FldConfig {
                 limiter: lim,

@@ -22,19 +22,10 @@ use solvers::scene::SceneFile;
 use solvers::{Backend, Grid, Medium, Precision};
 use std::path::Path;
 
-const LIMITERS: [FluxLimiter; 6] = [
-    FluxLimiter::Cda,
-    FluxLimiter::Sum,
-    FluxLimiter::Max,
-    FluxLimiter::Kershaw,
-    FluxLimiter::Larsen(2.0),
-    FluxLimiter::LevermorePomraning,
-];
-
 #[test]
 fn emission_leaves_through_marshak_faces_for_every_limiter() {
     let n = 8;
-    for lim in LIMITERS {
+    for lim in FluxLimiter::ALL {
         for tau in [0.01, 1.0, 100.0] {
             let grid = Grid::new([n + 2; 3], 1.0).unwrap();
             let len = grid.len();
