@@ -253,6 +253,8 @@ fn thesis_style(ctx: &Ctx, views: &[StyleView<'_>], iterations: usize) -> Result
         };
         let mut images = Vec::new();
         for (label, phi) in fields {
+            // 0.9 r_G may exceed the positivity bound r_pos, so a step can leave rounding-size
+            // negatives, which the image (emission ∝ φ) shows as zero.
             let phi: Vec<f64> = phi.iter().map(|&x| x.max(0.0)).collect();
             let img = dvr::render(&ph.grid, &ph.data, &phi, &style)
                 .with_context(|| format!("thesis-style image of {label} on the {short}"))?;
