@@ -298,7 +298,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
         |shard| {
             let t0 = Instant::now();
             let c0 = process_cpu_seconds();
-            let sums = render_image_part(&scene, &settings, &TraceOptions::default(), shard)
+            let sums = render_image_part(&scene, &settings, &TraceOptions::of(&scene), shard)
                 .context("rendering with our path tracer")?;
             if let (Some(a), Some(b)) = (c0, process_cpu_seconds()) {
                 cpu.set(b - a);
@@ -540,23 +540,35 @@ impl Experiment for MitsubaCompare {
     fn figure_runs(quick: bool) -> Vec<FigureRun> {
         // Quick runs keep 1024 paths per pixel (on 32×32): enough power for the claims that
         // `tests/registry.rs` checks on them, at about the cost of Mitsuba's start-up.
-        let spp: &[&str] = if quick { &["--spp", "1024"] } else { &[] };
+        // `dense_voxel` keeps its 16×16 camera and 256 spp there: Mitsuba's global majorant
+        // (σt = 1000 in one voxel) makes each of its paths cost ~10³ null collisions.
         // `dense_half_space` has an exact answer (Chandrasekhar's H-function) that our path
         // tracer matches and Mitsuba's float ray offsets miss (see the scene file).
-        ["cloud_directional", "emissive_sphere", "dense_half_space"]
-            .into_iter()
-            .map(|scene| {
-                let path = crate::common::workspace_root()
-                    .join("scenes")
-                    .join(format!("{scene}.toml"));
-                FigureRun::new(
-                    format!("{}/{scene}", Self::NAME),
-                    format!("{}: {scene}", Self::TITLE),
-                )
-                .args(["--scene".to_string(), path.display().to_string()])
-                .args(spp.iter().copied())
-            })
-            .collect()
+        [
+            "cloud_directional",
+            "emissive_sphere",
+            "dense_half_space",
+            "dense_voxel",
+            "environment_sphere",
+        ]
+        .into_iter()
+        .map(|scene| {
+            let spp: &[&str] = match (quick, scene) {
+                (false, _) => &[],
+                (true, "dense_voxel") => &["--spp", "256", "--resolution", "16,16"],
+                (true, _) => &["--spp", "1024"],
+            };
+            let path = crate::common::workspace_root()
+                .join("scenes")
+                .join(format!("{scene}.toml"));
+            FigureRun::new(
+                format!("{}/{scene}", Self::NAME),
+                format!("{}: {scene}", Self::TITLE),
+            )
+            .args(["--scene".to_string(), path.display().to_string()])
+            .args(spp.iter().copied())
+        })
+        .collect()
     }
 
     fn promises(_args: &Args) -> Vec<Promise> {

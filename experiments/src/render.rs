@@ -432,10 +432,26 @@ pub fn run_with(
     let mut fluence: Option<VolGrid> = None;
     let (result, plan_json) = if pt {
         let (_, effects) = pipeline::effects_of(&channels, &file.effects, &config)?;
+        // The majorant structure the tracker chose (the same for every channel: σt is).
+        let majorant = reference::pathtracer::majorant_report(
+            &channels[0],
+            &reference::pathtracer::TraceOptions::of(&channels[0]),
+        )
+        .with_context(|| format!("{}: preparing the path tracer", args.scene.display()))?;
         if args.explain {
             println!(
                 "method: path tracer ({spp} spp), rendered effects: {}",
                 effects.names()
+            );
+            println!(
+                "  majorant: {} ({} blocks of {}³ voxels, {} walked voxel by voxel, {} uniform; \
+                 max {:.4e})",
+                majorant.structure,
+                majorant.blocks.iter().product::<usize>(),
+                majorant.block,
+                majorant.refined_blocks,
+                majorant.uniform_blocks,
+                majorant.max
             );
             for p in reference::effects::pt_passes(&channels[0], &effects) {
                 println!("  {:?}: {:?}", p.component, p.contributions);
@@ -500,6 +516,7 @@ pub fn run_with(
         }
         let json = serde_json::json!({
             "method": "pt", "spp": spp, "effects": effects, "passes_run": renders,
+            "majorant": majorant,
         });
         (
             RenderOutput {

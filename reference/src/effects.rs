@@ -169,7 +169,7 @@ pub fn render_components_part(
                 ..*settings
             };
             let t0 = std::time::Instant::now();
-            let sums = render_image_part(&pass.scene, &s, &TraceOptions::default(), shard)?;
+            let sums = render_image_part(&pass.scene, &s, &TraceOptions::of(&pass.scene), shard)?;
             Ok(PassSums {
                 sums,
                 seconds: t0.elapsed().as_secs_f64(),

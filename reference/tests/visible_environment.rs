@@ -10,6 +10,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use reference::compare::{ImageEstimate, compare};
+use reference::effects::render_components;
 use reference::pathtracer::{Contributions, RenderSettings, render_image};
 use solvers::pipeline::{PipelineConfig, render};
 use solvers::scene::{
@@ -186,6 +187,25 @@ fn trilinear_and_nearest_transmittance_through_a_step() {
             ImageEstimate::batched(px, 1, img.mean, img.stderr, batches),
         ));
     }
+    // `render --method pt` and `mitsuba_compare` go through `render_components` (one pass per
+    // effect): it must honour the scene's interpolation too (it traced nearest voxels
+    // whatever the scene said until issue 14's stop 25).
+    let scene = step_scene(Interpolation::Trilinear, a, b, px);
+    let comp = render_components(
+        &scene,
+        &scene.implied_effects(),
+        &RenderSettings {
+            spp: 1 << 16,
+            seed: 12,
+            batches,
+            contributions: Contributions::all(),
+        },
+    )
+    .unwrap();
+    renders.push((
+        Interpolation::Trilinear,
+        ImageEstimate::batched(px, 1, comp.total.mean, comp.total.stderr, batches),
+    ));
     let exact = |interp| {
         let mean = (0..px)
             .map(|i| {

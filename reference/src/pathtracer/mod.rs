@@ -64,6 +64,16 @@ pub struct TraceOptions {
     pub refine: bool,
 }
 
+/// The majorant structure the path tracer chooses for `scene` under `options` (the same
+/// one [`render_image_with`] and the fluence tallies build): global, coarse blocks, or
+/// blocks with some walked cell by cell. Fails like the renderers on an invalid scene.
+pub fn majorant_report(
+    scene: &solvers::scene::Scene,
+    options: &TraceOptions,
+) -> Result<tracking::MajorantReport, crate::ReferenceError> {
+    Ok(world::World::new(scene, options)?.tracker.majorant.report())
+}
+
 impl TraceOptions {
     /// The options a scene asks for: its [`solvers::scene::Interpolation`], default blocks.
     pub fn of(scene: &solvers::scene::Scene) -> Self {

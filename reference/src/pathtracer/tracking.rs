@@ -59,6 +59,27 @@ const RATIO_ROULETTE: f64 = 1e-2;
 /// Refine a block when (μ̄ − mean voxel σt)·∆l exceeds this optical depth (module docs).
 pub const REFINE_OPTICAL_DEPTH: f64 = 1.0;
 
+/// The majorant structure a tracker chose (automatically, module docs), as reported by
+/// `render --method pt` (`plan.json`, `--explain`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct MajorantReport {
+    /// `global` (one majorant: a uniform medium or blocks ≥ the grid) or `blocks` (a grid
+    /// of coarse blocks), with `+refined` when some blocks are walked cell by cell.
+    pub structure: &'static str,
+    /// Block edge in voxels.
+    pub block: usize,
+    /// Blocks per axis.
+    pub blocks: [usize; 3],
+    /// Blocks walked cell by cell ((μ̄ − mean σt)·∆l > `refine_optical_depth`).
+    pub refined_blocks: usize,
+    /// Blocks whose σt is constant over their stencil.
+    pub uniform_blocks: usize,
+    /// The largest majorant (inverse length).
+    pub max: f64,
+    /// The refinement threshold in optical depth per voxel edge ([`REFINE_OPTICAL_DEPTH`]).
+    pub refine_optical_depth: f64,
+}
+
 /// Maximum σt per block of voxels; refined blocks are walked cell by cell.
 #[derive(Debug, Clone)]
 pub struct Majorant {
@@ -142,6 +163,32 @@ impl Majorant {
     /// Number of refined blocks (walked cell by cell; module docs).
     pub fn refined_blocks(&self) -> usize {
         self.refined.iter().filter(|&&r| r).count()
+    }
+
+    /// Number of uniform blocks (σt constant over the block's stencil: every tentative
+    /// collision real, transmittance exact; module docs).
+    pub fn uniform_blocks(&self) -> usize {
+        self.uniform.iter().filter(|&&u| u).count()
+    }
+
+    /// What this majorant structure is, for reports (`render --explain`, `plan.json`).
+    pub fn report(&self) -> MajorantReport {
+        let total = self.values.len();
+        let refined = self.refined_blocks();
+        MajorantReport {
+            structure: match (total == 1, refined > 0) {
+                (true, false) => "global",
+                (true, true) => "global+refined",
+                (false, false) => "blocks",
+                (false, true) => "blocks+refined",
+            },
+            block: self.block,
+            blocks: self.nb,
+            refined_blocks: refined,
+            uniform_blocks: self.uniform_blocks(),
+            max: self.max(),
+            refine_optical_depth: REFINE_OPTICAL_DEPTH,
+        }
     }
 
     /// The largest majorant.
@@ -583,6 +630,42 @@ mod tests {
         sigma[grid.index(4, 4, 4)] = centre;
         let n = grid.len();
         Medium::new(grid, sigma, vec![0.9; n], vec![0.0; n]).unwrap()
+    }
+
+    /// The structure `render --explain` and `plan.json` report is the one the tracker
+    /// chose: a uniform medium collapses to one global block; a smooth one keeps coarse
+    /// blocks; a dense voxel refines its block (one block of 8³ here, and one of the eight
+    /// 4³ blocks).
+    #[test]
+    fn majorant_report_says_what_was_chosen() {
+        let uniform = Medium::homogeneous(Grid::new([16, 8, 8], 0.1).unwrap(), 3.0, 0.5).unwrap();
+        let r = Tracker::new(Volume::new(&uniform, Interpolation::Nearest).unwrap(), 4)
+            .majorant
+            .report();
+        assert_eq!((r.structure, r.refined_blocks, r.max), ("global", 0, 3.0));
+        let dense = dense_cube(1e6);
+        for (block, structure, blocks) in [(8, "global+refined", 1), (4, "blocks+refined", 8)] {
+            let r = Tracker::new(Volume::new(&dense, Interpolation::Nearest).unwrap(), block)
+                .majorant
+                .report();
+            assert_eq!(r.structure, structure);
+            assert_eq!(r.blocks.iter().product::<usize>(), blocks);
+            assert_eq!((r.refined_blocks, r.max), (1, 1e6));
+            assert_eq!(r.uniform_blocks, blocks - 1);
+        }
+        // A gentle ramp (σt·∆l rises by 0.05 per voxel): coarse blocks, none refined.
+        let g = Grid::new([16, 16, 16], 0.0625).unwrap();
+        let ramp = Medium::new(
+            g,
+            g.sample(|p| 1.0 + 12.8 * p[0]),
+            vec![0.5; g.len()],
+            vec![0.0; g.len()],
+        )
+        .unwrap();
+        let r = Tracker::new(Volume::new(&ramp, Interpolation::Trilinear).unwrap(), 8)
+            .majorant
+            .report();
+        assert_eq!((r.structure, r.refined_blocks), ("blocks", 0));
     }
 
     /// Rays from a sphere of radius 2 around the cube towards random points of the 3³

@@ -91,6 +91,8 @@ pub const GENERATORS: &[GeneratorEntry] = &[
     GeneratorEntry::of::<VacuumCloud>(),
     GeneratorEntry::of::<Homogeneous>(),
     GeneratorEntry::of::<RandomHeterogeneous>(),
+    GeneratorEntry::of::<DenseVoxel>(),
+    GeneratorEntry::of::<Sphere>(),
     GeneratorEntry::of::<NoiseCloud>(),
     GeneratorEntry::of::<super::datasets::Nebula>(),
     GeneratorEntry::of::<super::datasets::EmissiveCloud>(),
@@ -209,6 +211,94 @@ impl Generator for Homogeneous {
             });
         }
         Medium::homogeneous(Grid::cube(self.n, self.extent)?, self.sigma_t, self.albedo)
+    }
+}
+
+/// Issue 14's dense-voxel cube: `n³` voxels of σt = `sigma_t` in the unit cube with the
+/// voxel (n/2, n/2, n/2) of σt = `centre_sigma_t` (up to f64's range: a majorant test, the
+/// path tracer's cost must not grow with it).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DenseVoxel {
+    /// Voxels per axis (default 8).
+    pub n: usize,
+    /// σt of every other voxel (default 4).
+    pub sigma_t: f64,
+    /// σt of the centre voxel (default 10⁶).
+    pub centre_sigma_t: f64,
+    /// Single-scattering albedo everywhere (default 0.9).
+    pub albedo: f64,
+}
+
+impl Default for DenseVoxel {
+    fn default() -> Self {
+        Self {
+            n: 8,
+            sigma_t: 4.0,
+            centre_sigma_t: 1e6,
+            albedo: 0.9,
+        }
+    }
+}
+
+impl Generator for DenseVoxel {
+    const NAME: &'static str = "dense_voxel";
+    const DESCRIPTION: &'static str =
+        "unit cube of sigma_t with one dense centre voxel (n, sigma_t, centre_sigma_t, albedo)";
+    fn generate(&self) -> Result<Medium<f64>, SolverError> {
+        let grid = Grid::cube(self.n, 1.0)?;
+        let mut sigma = vec![self.sigma_t; grid.len()];
+        let c = self.n / 2;
+        sigma[grid.index(c, c, c)] = self.centre_sigma_t;
+        let n = grid.len();
+        Medium::new(grid, sigma, vec![self.albedo; n], vec![0.0; n])
+    }
+}
+
+/// A homogeneous sphere of radius `radius` centred in the unit cube, vacuum around it
+/// (voxels whose centre lies inside are filled).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Sphere {
+    /// Voxels per axis (default 16).
+    pub n: usize,
+    /// Radius (default 0.35; in (0, 0.5]).
+    pub radius: f64,
+    /// σt inside (default 20).
+    pub sigma_t: f64,
+    /// Single-scattering albedo inside (default 0.9).
+    pub albedo: f64,
+}
+
+impl Default for Sphere {
+    fn default() -> Self {
+        Self {
+            n: 16,
+            radius: 0.35,
+            sigma_t: 20.0,
+            albedo: 0.9,
+        }
+    }
+}
+
+impl Generator for Sphere {
+    const NAME: &'static str = "sphere";
+    const DESCRIPTION: &'static str =
+        "homogeneous sphere centred in the unit cube, vacuum around (n, radius, sigma_t, albedo)";
+    fn generate(&self) -> Result<Medium<f64>, SolverError> {
+        if !(self.radius > 0.0 && self.radius <= 0.5) {
+            return Err(SolverError::BadParameter {
+                name: "radius",
+                value: self.radius,
+                reason: "must be in (0, 0.5] (the sphere lies in the unit cube)",
+            });
+        }
+        let grid = Grid::cube(self.n, 1.0)?;
+        let r2 = self.radius * self.radius;
+        let inside = |p: [f64; 3]| (0..3).map(|a| (p[a] - 0.5) * (p[a] - 0.5)).sum::<f64>() < r2;
+        let sigma = grid.sample(|p| if inside(p) { self.sigma_t } else { 0.0 });
+        let n = grid.len();
+        Medium::new(grid, sigma, vec![self.albedo; n], vec![0.0; n])
     }
 }
 
@@ -391,6 +481,8 @@ mod tests {
         check::<EmissiveCloud>();
         check::<ShellCore>();
         check::<Plume>();
+        check::<DenseVoxel>();
+        check::<Sphere>();
         let h: Homogeneous = toml::from_str("sigma_t = 1.0\nalbedo = 0.5").unwrap();
         assert_eq!((h.n, h.extent), (32, 1.0));
         let err = find("homogeneous")
@@ -398,6 +490,36 @@ mod tests {
             .build_from_document("[medium]\n")
             .unwrap_err();
         assert!(err.to_string().contains("missing field `sigma_t`"), "{err}");
+    }
+
+    /// The dense voxel sits at the centre with its value (σt = 3·10³⁸ is a valid σt); the
+    /// sphere's filled voxels are those whose centre lies inside, and a radius outside
+    /// (0, 0.5] is a typed error naming it.
+    #[test]
+    fn dense_voxel_and_sphere_generators() {
+        let p: toml::Table = toml::from_str(
+            "n = 8
+centre_sigma_t = 3e38",
+        )
+        .unwrap();
+        let m = find("dense_voxel").unwrap().build(&p).unwrap();
+        let c = m.grid.index(4, 4, 4);
+        assert_eq!(m.sigma_t[c], 3e38);
+        assert_eq!(m.sigma_t.iter().filter(|&&s| s == 4.0).count(), 511);
+        let s = Sphere {
+            n: 20,
+            radius: 0.3,
+            ..Sphere::default()
+        }
+        .generate()
+        .unwrap();
+        let filled = s.sigma_t.iter().filter(|&&x| x == 20.0).count() as f64;
+        let want = 4.0 / 3.0 * std::f64::consts::PI * 0.3f64.powi(3) * 8000.0;
+        assert!((filled / want - 1.0).abs() < 0.05, "{filled} vs {want}");
+        assert!(s.sigma_t.iter().all(|&x| x == 0.0 || x == 20.0));
+        let bad: toml::Table = toml::from_str("radius = 0.7").unwrap();
+        let err = find("sphere").unwrap().build(&bad).unwrap_err();
+        assert!(err.to_string().contains("radius"), "{err}");
     }
 
     #[test]
