@@ -20,9 +20,11 @@
 //! solve, raymarch), on each selected backend.
 //!
 //! **Outputs** (`results/accuracy_cost/`): `points.csv`
-//! (`scene,method,setting,backend,seconds,error,error_stderr` and more), a log–log Pareto
+//! (`scene,method,setting,backend,seconds,error,error_stderr` and more; `paths_per_second`
+//! for the path-tracer points, wall-clock like `seconds`), a log–log Pareto
 //! plot per scene (`pareto_<scene>.png`), `fastest.csv` (per scene and error target 5 %,
-//! 2 %, 1 %: the fastest point whose debiased error reaches it), `references.csv` and
+//! 2 %, 1 %: the fastest point whose debiased error reaches it), `references.csv` (with the
+//! reference's `paths_per_second`) and
 //! `meta.json`.
 
 use crate::common::{BackendArgs, CommonArgs, Ctx, list_item, progress};
@@ -162,6 +164,9 @@ pub struct Point {
     pub detail: String,
     /// The scene's mean cosine g (0 for isotropic scattering).
     pub g: f64,
+    /// Camera paths per wall-clock second (path tracer settings; NaN for grid methods):
+    /// the cost per path that moves the Pareto front when the tracer gets faster.
+    pub paths_per_second: f64,
 }
 
 /// A method setting.
@@ -188,6 +193,8 @@ pub struct Run {
     pub seconds: f64,
     /// Free-form detail (iterations etc.).
     pub detail: String,
+    /// Camera paths traced (path tracer; 0 for grid methods).
+    pub paths: u64,
 }
 
 /// One render job.
@@ -388,6 +395,7 @@ fn run_pt(job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
     };
     let mut images = Vec::new();
     let mut seconds = 0.0;
+    let mut paths = 0;
     for (c, ch) in job.scene.channels.iter().enumerate() {
         let what = format!(
             "path tracer point of {} [{}], channel {c}",
@@ -406,6 +414,7 @@ fn run_pt(job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
         )?;
         if let Some((comp, s)) = tallied {
             images.push(to_channel_images(&comp));
+            paths += comp.paths(settings.spp);
             seconds += s;
         }
     }
@@ -416,6 +425,7 @@ fn run_pt(job: &Job<'_>, ctx: &mut Ctx) -> Result<Option<Run>> {
         images,
         seconds,
         detail: format!("spp={}", settings.spp),
+        paths,
     }))
 }
 
@@ -468,6 +478,7 @@ fn decode_images(parts: &[PassSums], detail: &str) -> Result<Run> {
             .collect(),
         seconds: parts.first().map_or(0.0, |p| p.seconds),
         detail: detail.to_string(),
+        paths: 0,
     })
 }
 
@@ -525,6 +536,7 @@ fn run_grid(job: &Job<'_>, method: &MethodRef) -> Result<Run> {
         images: r.channels,
         seconds,
         detail: format!("iterations={}", iterations.join("/")),
+        paths: 0,
     })
 }
 
@@ -543,6 +555,17 @@ pub struct ReferenceRow {
     pub channels: usize,
     /// Effects rendered.
     pub effects: String,
+    /// Camera paths per wall-clock second of the reference render.
+    pub paths_per_second: f64,
+}
+
+/// `paths / seconds`; NaN when nothing was traced (grid methods) or no time was measured.
+fn per_second(paths: u64, seconds: f64) -> f64 {
+    if paths == 0 || seconds <= 0.0 {
+        f64::NAN
+    } else {
+        paths as f64 / seconds
+    }
 }
 
 /// The fastest point reaching an error target.
@@ -763,6 +786,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             noise,
             channels: scene.channels.len(),
             effects: scene.effects.names(),
+            paths_per_second: per_second(
+                scene.reference.iter().map(|c| c.paths(ref_spp)).sum(),
+                scene.reference_seconds,
+            ),
         });
         let bar = progress(jobs.len() as u64, &args.common, &scene.name);
         for (m, s, b) in &jobs {
@@ -800,6 +827,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                     .channels
                     .first()
                     .map_or(0.0, |c| c.phase.mean_cosine()),
+                paths_per_second: per_second(r.paths, r.seconds),
             });
             if let Some(p) = points.last() {
                 let line = format!(

@@ -95,6 +95,24 @@ fn accuracy_cost_quick_atlas() {
         };
         let ratio = pt("16") / pt("32");
         assert!((1.15..1.75).contains(&ratio), "{s}: pt error ratio {ratio}");
+        // Cost per path: paths/s × seconds is the paths traced, a whole number of passes
+        // (one per rendered component, per channel) of spp × pixels; grid points have none.
+        for p in &mine {
+            let pps = p.num("paths_per_second");
+            if p.get("method") == "pt" {
+                let spp: f64 = p.get("setting").trim_start_matches("spp=").parse().unwrap();
+                // (24 × 24 pixels: the quick atlas resolution.)
+                let passes = pps * p.num("seconds") / (spp * 24.0 * 24.0);
+                assert!(
+                    pps > 0.0 && (passes - passes.round()).abs() < 1e-6 && passes >= 1.0,
+                    "{s}: {} paths/s over {} s is {passes} passes",
+                    pps,
+                    p.get("seconds")
+                );
+            } else {
+                assert!(pps.is_nan(), "{s} {}: paths/s {pps}", p.get("method"));
+            }
+        }
     }
 }
 

@@ -203,8 +203,8 @@ fn accuracy_atlas_merges_bit_identically() {
         &flags,
         2,
         &[
-            Same::Csv("points.csv", &["seconds"]),
-            Same::Csv("references.csv", &["seconds"]),
+            Same::Csv("points.csv", &["seconds", "paths_per_second"]),
+            Same::Csv("references.csv", &["seconds", "paths_per_second"]),
             // The fastest point per target depends on wall times; its targets and whether
             // each is resolvable (the reference's noise) do not.
             Same::Csv(
@@ -413,8 +413,14 @@ fn atlas_tasks_merge_like_a_single_run() {
     // Every column but the seconds (a grid point's seconds are its task's own, so
     // fastest.csv and the plots follow from the same numbers as in one run).
     for name in ["points.csv", "references.csv"] {
-        let a = csv_without(&dir.join("whole").join(name), &["seconds"]);
-        let b = csv_without(&dir.join("merged").join(name), &["seconds"]);
+        let a = csv_without(
+            &dir.join("whole").join(name),
+            &["seconds", "paths_per_second"],
+        );
+        let b = csv_without(
+            &dir.join("merged").join(name),
+            &["seconds", "paths_per_second"],
+        );
         assert!(a.len() > 1);
         assert_eq!(a, b, "{name}");
     }

@@ -162,8 +162,8 @@ fn sharded_runs_through_slurm_merge_bit_identically() {
     let atlas = small_atlas();
     let atlas: Vec<&str> = atlas.iter().map(String::as_str).collect();
     let files: &[(&str, &[&str])] = &[
-        ("points.csv", &["seconds"]),
-        ("references.csv", &["seconds"]),
+        ("points.csv", &["seconds", "paths_per_second"]),
+        ("references.csv", &["seconds", "paths_per_second"]),
     ];
     // The sweep's Monte Carlo as 4 shards (grid methods in the merge job) …
     through_slurm(

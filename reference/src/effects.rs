@@ -115,6 +115,15 @@ pub struct PtComponents {
     pub renders: Vec<(Component, Contributions, f64)>,
 }
 
+impl PtComponents {
+    /// Camera paths traced: one per pixel sample of each render that ran, at `spp` samples
+    /// per pixel (what `paths_per_second` counts in the atlas and `mitsuba_compare`).
+    pub fn paths(&self, spp: u32) -> u64 {
+        let pixels = (self.total.width * self.total.height) as u64;
+        self.renders.len() as u64 * pixels * u64::from(spp)
+    }
+}
+
 fn zero(w: usize, h: usize) -> Image {
     Image {
         width: w,
