@@ -33,7 +33,7 @@ fn quick() -> &'static Quick {
                 let mut outcome = RunOutcome::new(e, run.clone());
                 match e.run(&argv) {
                     Ok(()) => problems.extend(common::broken_promises(e, &argv, &dir)),
-                    // Mitsuba is optional here (`both_example_scenes_agree_with_mitsuba` requires it when SCATTERBENCH_REQUIRE_MITSUBA=1, as in CI).
+                    // Mitsuba is optional here (`example_scenes_agree_with_mitsuba` requires it when SCATTERBENCH_REQUIRE_MITSUBA=1, as in CI).
                     Err(err) if unavailable(&err).is_some() => {
                         eprintln!("skipped {}: {err:#}", run.dir);
                         outcome.skipped = Some(format!("{err:#}"));
@@ -275,15 +275,16 @@ fn committed_results_readme_embeds_every_plot_with_short_lines() {
     );
 }
 
-/// Our path tracer against Mitsuba 3 on both example scenes (quick: 32×32, 1024 paths per
+/// Our path tracer against Mitsuba 3 on the example scenes (the environment-lit HG sphere
+/// with its background visible among them; quick: 32×32, 1024 paths per
 /// pixel): at least 99 % of the pixels pass the per-pixel test, the image means agree within
 /// 4 combined standard errors (a false alarm has probability 6e-5), and the test has the power
 /// to see a 5 % difference. Without Mitsuba (scripts/setup-mitsuba.sh) it prints "skipped"
 /// and passes, unless SCATTERBENCH_REQUIRE_MITSUBA=1, when it fails.
 #[test]
-fn both_example_scenes_agree_with_mitsuba() {
+fn example_scenes_agree_with_mitsuba() {
     let root = quick().root.join("mitsuba_compare");
-    for scene in ["cloud_directional", "emissive_sphere"] {
+    for scene in ["cloud_directional", "emissive_sphere", "environment_sphere"] {
         let dir = root.join(scene);
         if !dir.join("comparison.csv").exists() {
             assert!(
