@@ -54,6 +54,13 @@ pub struct Args {
     /// Seed of the path tracer.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The grid methods' tolerance (`Tolerance::rel`; default the pipeline's 10⁻⁴): a
+    /// smaller one measures how much of a gap is under-convergence.
+    #[arg(long, default_value_t = solvers::method::Tolerance::default().rel)]
+    pub tol: f64,
+    /// The grid methods' step cap (default the pipeline's 20 000).
+    #[arg(long, default_value_t = solvers::method::Tolerance::default().max_steps)]
+    pub max_steps: usize,
 }
 
 /// One row of `emissive_cube.csv`.
@@ -211,7 +218,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
             for &d in &ds {
                 let cfg = crate::accuracy_cost::grid_config(r, d, 1e-4);
                 let cfg = PipelineConfig {
-                    tolerance: solvers::method::Tolerance::default(),
+                    tolerance: solvers::method::Tolerance {
+                        rel: args.tol,
+                        max_steps: args.max_steps,
+                    },
                     ..cfg
                 };
                 let out = pipeline::render_file(f, &cfg, &Backend::Cpu(Precision::F64))

@@ -235,9 +235,15 @@ impl<T: Real> CpuRde<T> {
         match self.config.run {
             Run::Steady { max_steps, .. } => {
                 let tol = self.tolerance();
+                let by_error = self.config.stop == super::SteadyStop::ErrorBound;
+                let every = self.config.check_every as usize;
+                let mut bound = super::ErrorBound::default();
                 if self.trivial {
                     stop = Stop::Converged;
                 } else {
+                    if by_error {
+                        bound.observe(&self.phi[self.cur]);
+                    }
                     while self.steps < max_steps {
                         let r = self.step(true);
                         self.residuals.push(r);
@@ -246,7 +252,16 @@ impl<T: Real> CpuRde<T> {
                             stop = Stop::NonFinite;
                             break;
                         }
-                        if r < tol {
+                        if by_error {
+                            if self.steps % every == 0 {
+                                let e = bound.observe(&self.phi[self.cur]);
+                                self.trace.error_estimates.push((self.steps, e));
+                                if e < tol {
+                                    stop = Stop::Converged;
+                                    break;
+                                }
+                            }
+                        } else if r < tol {
                             stop = Stop::Converged;
                             break;
                         }

@@ -89,6 +89,10 @@ pub struct GpuRde<'a> {
     grid: Grid,
     run: Run,
     check_every: u32,
+    /// [`super::SteadyStop::ErrorBound`]: stopped by the host between blocks.
+    by_error: bool,
+    /// The `Steady` tolerance (of the error bound when `by_error`).
+    tolerance: f64,
     j_ref: f64,
     trivial: bool,
     groups: [u32; 3],
@@ -159,7 +163,13 @@ impl<'a> GpuRde<'a> {
             _pad1: 0,
             _pad2: 0,
             r: host.r() as f32,
-            tolerance: host.tolerance() as f32,
+            // The error-bound stop is decided on the host between blocks: the device stops only
+            // on a non-finite residual.
+            tolerance: if config.stop == super::SteadyStop::ErrorBound {
+                0.0
+            } else {
+                host.tolerance() as f32
+            },
             inv_count: (1.0 / (w.count as f64 * dl * dl)) as f32,
             _pad3: 0.0,
         };
@@ -226,6 +236,8 @@ impl<'a> GpuRde<'a> {
             grid,
             run: config.run,
             check_every,
+            by_error: config.stop == super::SteadyStop::ErrorBound,
+            tolerance: host.tolerance(),
             j_ref: host.j_ref(),
             trivial: host.is_trivial(),
             groups,
@@ -320,6 +332,38 @@ impl<'a> GpuRde<'a> {
             (Stop::Converged, 0.0, ctx.timer())
         } else {
             match self.run {
+                Run::Steady { max_steps, .. } if self.by_error => {
+                    // Blocks of `every` steps, φ read back after each (module docs of
+                    // `super`, "Stopping rule"): the same blocks as the CPU.
+                    let mut bound = super::ErrorBound::default();
+                    bound.observe(&self.phi()?);
+                    let (mut seconds, mut timer, mut stop) = (0.0, ctx.timer(), Stop::Cap);
+                    while self.done_steps < max_steps {
+                        let n = (every as usize).min(max_steps - self.done_steps);
+                        let run = run_checkpointed(
+                            ctx,
+                            &mut self,
+                            "rde steps",
+                            n,
+                            every,
+                            Stop::Cap,
+                            &mut observer,
+                        )?;
+                        seconds += run.seconds;
+                        timer = run.timer;
+                        if run.stop != Stop::Cap {
+                            stop = run.stop;
+                            break;
+                        }
+                        let e = bound.observe(&self.phi()?);
+                        self.trace.error_estimates.push((self.done_steps, e));
+                        if e < self.tolerance {
+                            stop = Stop::Converged;
+                            break;
+                        }
+                    }
+                    (stop, seconds, timer)
+                }
                 Run::Steady { max_steps, .. } => {
                     let run = run_checkpointed(
                         ctx,

@@ -8,18 +8,21 @@
 //! the local step r_p = 0.9/(a_p + Σβ_ps) (damped Jacobi), so the steady state is CDA's
 //! system; `local=0` gives one global r = safety·r_G and `beta_max=1` the thesis's range.
 //!
-//! **Tolerance.** It stops when R̄/j̄ < [`Tolerance::rel`], with R_p = (φⁿ⁺¹_p − φⁿ_p)/(c∆t)
-//! (with the local step, (φⁿ⁺¹_p − φⁿ_p)/(c∆t_p)), which is FLD Eq 37's residual of the same
-//! linear system CDA solves (the RMS over the same interior window, normalised by the same
-//! j̄; code shared with [`crate::fld`]): at one `rel` CDA and RDE stop at the same residual of
-//! the same discrete equation. `rel` = 0 runs exactly `max_steps` steps.
+//! **Tolerance.** By default (`stop=1`) it stops when the estimated relative error of φ,
+//! ‖φ_k − φ_{k−1}‖/‖φ_k‖ over blocks of 32 steps divided by 1 − ρ̂ (ρ̂ the measured block
+//! contraction), is < [`Tolerance::rel`] (the module docs of [`crate::rde`], "Stopping rule":
+//! FLD Eq 37's residual stopped 45–49 % from steady state on the albedo-1 cubes). `stop=0`
+//! keeps the residual stop: R̄/j̄ < rel, with R_p = (φⁿ⁺¹_p − φⁿ_p)/(c∆t_p), FLD Eq 37's
+//! residual of the same linear system CDA solves (the RMS over the same interior window,
+//! normalised by the same j̄; code shared with [`crate::fld`]). `rel` = 0 runs exactly
+//! `max_steps` steps.
 //!
 //! Variants: `conservative` (default), `expanded` (thesis Eq 4.8, sign fixed), `verbatim`
 //! (thesis Eq 4.8 as printed; reproduction only, never in the atlas, which takes each
 //! family's default). Parameters: `local`, `safety`, `r` (a fixed r = c∆t/∆, checked against
-//! r_G) and `beta_max`.
+//! r_G), `beta_max` and `stop`.
 
-use super::{Coefficients, Operator, RdeConfig, Run, TimeStep};
+use super::{Coefficients, Operator, RdeConfig, Run, SteadyStop, TimeStep};
 use crate::method::{
     Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem, Tolerance,
 };
@@ -41,7 +44,9 @@ impl Default for RdeMethod {
     /// Local time step (safety 0.9) and CDA's cap: see the module docs.
     fn default() -> Self {
         Self {
-            config: RdeConfig::default().with_time_step(TimeStep::Local { safety: 0.9 }),
+            config: RdeConfig::default()
+                .with_time_step(TimeStep::Local { safety: 0.9 })
+                .with_stop(SteadyStop::ErrorBound),
             beta_max: None,
         }
     }
@@ -81,6 +86,17 @@ impl RdeMethod {
                     let safety = params.get("safety").unwrap_or(0.9);
                     self.config.time_step = TimeStep::Local { safety };
                 }
+            }
+        }
+        match params.get("stop") {
+            None | Some(1.0) => self.config.stop = SteadyStop::ErrorBound,
+            Some(0.0) => self.config.stop = SteadyStop::Residual,
+            Some(v) => {
+                return Err(SolverError::BadParameter {
+                    name: "stop",
+                    value: v,
+                    reason: "0 (FLD Eq 37's residual R̄/j̄ < rel) or 1 (the error bound, default)",
+                });
             }
         }
         if let Some(b) = params.get("beta_max") {
@@ -168,6 +184,10 @@ pub const RDE: MethodFamily = MethodFamily {
             "0: one global r = safety·r_G (the thesis's FTCS); 1 (default): local r_p = safety/(Ka∆ + Σβ_ps), damped Jacobi with the same steady state",
         ),
         (
+            "stop",
+            "1 (default): stop when the estimated relative error of φ, ‖φⁿ − φⁿ⁻³²‖/‖φⁿ‖/(1 − ρ̂), is < rel (ρ̂ the measured contraction per 32 steps); 0: FLD Eq 37's residual R̄/j̄ < rel",
+        ),
+        (
             "beta_max",
             "cap on β = D/∆, ≥ 1 (the thesis's range is 1); default CDA's 1/(3σ_ε∆)",
         ),
@@ -187,7 +207,7 @@ pub const RDE: MethodFamily = MethodFamily {
         };
         Ok(Box::new(
             RdeMethod {
-                config: RdeConfig::default().with_operator(operator),
+                config: RdeMethod::default().config.with_operator(operator),
                 ..RdeMethod::default()
             }
             .with_params(params)?,
