@@ -148,6 +148,20 @@ pub enum SolverError {
     /// The requested combination of backend and precision does not exist.
     #[error("{0}")]
     Unsupported(String),
+    /// A method that takes the lights itself ([`crate::method::LightInput::Direct`]) was
+    /// given a light of a kind it does not take.
+    #[error(
+        "method {method} takes directional and environment lights only; light {index} is {} light (exclude its effects, or use a method that takes baked lights)",
+        crate::error::indefinite(kind)
+    )]
+    LightKind {
+        /// The method's name.
+        method: String,
+        /// Index of the light in [`crate::method::Problem::lights`].
+        index: usize,
+        /// Its kind (`point`, `sphere`).
+        kind: &'static str,
+    },
 }
 
 #[cfg(test)]

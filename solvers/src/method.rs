@@ -223,15 +223,122 @@ impl<T: Real, E> Solution<T, E> {
     }
 }
 
-/// How a method receives the scene's lights.
+/// How a method receives the scene's lights, and what its φ then holds.
+///
+/// ## The contract of φ
+/// Let φ_s be the fluence of light that has scattered at least once, and let every method
+/// return φ such that the pipeline's σs·φ/4π (FLD Eq 8) is the radiance of the effect
+/// `multiple` (orders ≥ 2 from the lights, orders ≥ 1 from emission) with no effect counted
+/// twice:
+/// * [`LightInput::Baked`]: the pipeline bakes each directional or point light into the volume
+///   source q_ri = σs·L_ri (FLD Eq 6, order 1); φ is the fluence sourced by q_ri (+ j), i.e.
+///   φ_s of the lights plus the emission's fluence of orders ≥ 0.
+/// * [`LightInput::Direct`]: the pipeline bakes nothing for the method. It hands it
+///   [`Problem::lights`] (in the medium's frame; the emission j, when rendered, is still
+///   the volume source) and the method returns
+///   - for each **directional** light: φ_s only — its uncollided fluence E·e^{−τ} removed,
+///     because the pipeline renders that light's single scattering by its exact raymarch
+///     with the scene's phase function (the effect `single_scattering[i]` is the raymarch's);
+///   - for each **environment** light: its fluence of every order, uncollided included,
+///     because the grid pipeline has no single-scattering raymarch for an environment: the
+///     effect `single_scattering[i]` of an environment light is the method's, rendered as
+///     σs·φ/4π (isotropic in-scattering of the uncollided light; the plan warns under
+///     anisotropy). The environment seen directly (`background`) stays the raymarch's;
+///   - plus, with emission, the emission's fluence of orders ≥ 0, as for `Baked`.
+///   Point and sphere lights are refused with [`SolverError::LightKind`] naming the light
+///   ([`direct_lights`]).
+///
+/// The planner records per pass which effects it computes ([`crate::pipeline::Planned`]'s
+/// `computes`); `pipeline::tests::direct_lpm_counts_every_effect_once` checks the contract
+/// numerically against the baked path.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LightInput {
     /// The pipeline bakes each light into the volume source q_ri = σs·L_ri (FLD Eq 6); φ is
     /// the fluence of light scattered at least once.
     Baked,
-    /// The method reads [`Problem::lights`] itself (propagation methods such as LPM, POP).
+    /// The method reads [`Problem::lights`] itself (propagation methods such as LPM, POP);
+    /// φ as in the contract above.
     Direct,
+}
+
+/// A light as a [`LightInput::Direct`] method takes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DirectLight {
+    /// A collimated beam of `irradiance` travelling along the unit `direction`; the method
+    /// removes its uncollided fluence from φ.
+    Directional {
+        /// Index in [`Problem::lights`].
+        index: usize,
+        /// Unit direction of travel.
+        direction: [f64; 3],
+        /// Irradiance perpendicular to it.
+        irradiance: f64,
+    },
+    /// A constant environment of `radiance`; φ keeps its uncollided fluence.
+    Environment {
+        /// Index in [`Problem::lights`].
+        index: usize,
+        /// Radiance.
+        radiance: f64,
+    },
+}
+
+/// The lights of `problem` as a Direct method of name `method` takes them: directional and
+/// environment lights; a point or sphere light is [`SolverError::LightKind`] naming it.
+pub fn direct_lights(method: &str, lights: &[Light]) -> Result<Vec<DirectLight>, SolverError> {
+    lights
+        .iter()
+        .enumerate()
+        .map(|(index, l)| match *l {
+            Light::Directional {
+                direction,
+                irradiance,
+            } => Ok(DirectLight::Directional {
+                index,
+                direction,
+                irradiance,
+            }),
+            Light::Environment { radiance } => Ok(DirectLight::Environment { index, radiance }),
+            Light::Point { .. } => Err(SolverError::LightKind {
+                method: method.to_string(),
+                index,
+                kind: "point",
+            }),
+            Light::Sphere { .. } => Err(SolverError::LightKind {
+                method: method.to_string(),
+                index,
+                kind: "sphere",
+            }),
+        })
+        .collect()
+}
+
+/// The uncollided fluence Σ E·e^{−τ(x)} of the directional lights at the voxel centres of
+/// `medium` (τ exact for the piecewise-constant σt, the pipeline's deep shadow map): what a
+/// Direct method whose own φ includes the uncollided beam subtracts (POP).
+pub fn uncollided_directional(medium: &Medium<f64>, lights: &[DirectLight]) -> Vec<f64> {
+    let g = medium.grid;
+    let mut out = vec![0.0; g.len()];
+    for l in lights {
+        if let DirectLight::Directional {
+            index,
+            direction,
+            irradiance,
+        } = *l
+        {
+            let light = Light::Directional {
+                direction,
+                irradiance,
+            };
+            if let Some(b) = crate::pipeline::bake::bake(medium, index, &light) {
+                out.iter_mut()
+                    .enumerate()
+                    .for_each(|(i, v)| *v += b.at_voxel(&g, i));
+            }
+        }
+    }
+    out
 }
 
 /// What a method supports; the planner, the atlas and the conformance suite read this
@@ -471,6 +578,7 @@ pub static METHODS: &[MethodFamily] = &[
     crate::fld::FLD,
     crate::lbm::LBM,
     crate::lpm::LPM,
+    crate::pop::POP,
     crate::rde::RDE,
 ];
 

@@ -26,6 +26,8 @@ method_conformance!(
     lbm: "lbm",
     lbm_similarity: "lbm:similarity",
     lpm: "lpm",
+    lpm_baked: "lpm:baked",
+    pop: "pop",
     rde: "rde",
 );
 

@@ -1,11 +1,19 @@
 //! Light propagation maps behind the [`Method`] interface: the registry entry `lpm[:paper]`.
 //!
-//! The method takes the pipeline's baked source (its [`LightInput::Baked`]: the problem's
-//! emission q = σs·L_ri + j, the first-collision mode of D13) as U⁰ = q/4π, no boundary
-//! light, and returns φ = Σ_p φ^p, the fluence of the light emitted by q and scattered on:
-//! the fluence of light scattered at least once, as CDA, FLD and LBM return. Light taken
-//! directly from the scene's lights (directional and environment boundary radiance) is the
-//! solver's [`super::BoundaryLight`] and not wired into the pipeline yet.
+//! **Two ways in** (the contract of φ is [`LightInput`]'s):
+//! * `lpm` (default, [`LightInput::Direct`]): the method takes the scene's lights as boundary
+//!   radiance in cell averages (LPM §3, spec D13): a directional light snapped to the
+//!   direction cell that contains it with L = E/|Ω^i| ([`BoundaryLight::directional`]), a
+//!   constant environment L on every direction ([`BoundaryLight::uniform`]); point and
+//!   sphere lights are [`SolverError::LightKind`]. The emission j (when rendered) is U⁰ = j/4π.
+//!   It returns φ = Σ_p φ^p minus the order-0 fluence of the directional lights alone, which
+//!   a second, one-order solve with those lights and no source computes on the same ray
+//!   tables (LPM is linear, so the difference is the directional lights' scattered light
+//!   to rounding; their single scattering is the pipeline's exact raymarch). An
+//!   environment's order 0 stays in φ: its single scattering is σs·φ/4π.
+//! * `lpm:baked` ([`LightInput::Baked`], the first-collision mode of D13): U⁰ = q/4π of the
+//!   pipeline's baked source q = σs·L_ri + j, no boundary light, φ = Σ_p φ^p: the fluence
+//!   of light scattered at least once, as CDA, FLD and LBM return. `lpm:paper` is baked too.
 //!
 //! **Tolerance.** One order is one step. It stops when the unshot power after an order is at
 //! most [`Tolerance::rel`] × the power deposited by order 0 (D1); that ratio is
@@ -13,14 +21,15 @@
 //! outflow misses exactly the unshot power: the balance's outflow/source is 1 − O(rel).
 //! `rel` = 0 runs exactly `max_steps` orders (Alg 2's fixed count; the paper's 3).
 //!
-//! Variants: none (the exact formulas) and `paper` (LPM Eqs 3, 4, 6 literally with the zero
+//! Variants: none and `baked` (the exact formulas) and `paper` (LPM Eqs 3, 4, 6 literally with the zero
 //! wrap: reproduction only, never in the atlas, which takes each family's default).
 //! Parameter: `m` (cells per face edge, default 5: 150 directions).
 
 use super::{BoundaryLight, CpuLpm, Formulas, LpmConfig, Orders, WrapBc};
 use crate::gpu::Timer;
 use crate::method::{
-    Balance, Capabilities, Fluence, LightInput, Method, MethodFamily, Problem, Solution, Tolerance,
+    Balance, Capabilities, DirectLight, Fluence, LightInput, Method, MethodFamily, Problem,
+    Solution, Tolerance,
 };
 use crate::{Backend, Grid, Precision, Real, SolverError};
 
@@ -29,6 +38,9 @@ use crate::{Backend, Grid, Precision, Real, SolverError};
 pub struct LpmMethod {
     /// The solver settings; `phase` and `orders` are replaced per solve.
     pub config: LpmConfig,
+    /// Whether it takes the lights itself (`lpm`) or the baked source (`lpm:baked`,
+    /// `lpm:paper`).
+    pub lights: LightInput,
 }
 
 impl Default for LpmMethod {
@@ -38,6 +50,7 @@ impl Default for LpmMethod {
                 keep_orders: false,
                 ..LpmConfig::default()
             },
+            lights: LightInput::Direct,
         }
     }
 }
@@ -68,8 +81,27 @@ impl LpmMethod {
         let setup = std::time::Instant::now();
         let cfg = self.config_for(problem, tolerance);
         let lpm = CpuLpm::<T>::new(&problem.medium.cast(), &cfg)?;
+        let (boundary, directional) = match self.lights {
+            LightInput::Baked => (BoundaryLight::none(&lpm.dirs), None),
+            LightInput::Direct => self.boundary(&lpm.dirs, problem)?,
+        };
         let setup_seconds = setup.elapsed().as_secs_f64();
-        let s = lpm.solve(&BoundaryLight::none(&lpm.dirs), observer)?;
+        let mut s = lpm.solve(&boundary, observer)?;
+        if let Some(dir) = directional {
+            // The directional lights' order 0 alone: same ray tables, no source, one order.
+            let mut dark = problem.medium.clone();
+            dark.emission.iter_mut().for_each(|j| *j = 0.0);
+            let once = LpmConfig {
+                orders: Orders::Fixed(1),
+                ..cfg.clone()
+            };
+            let t0 = std::time::Instant::now();
+            let zero = CpuLpm::<T>::new(&dark.cast(), &once)?.solve(&dir, |_, _| {})?;
+            s.seconds += t0.elapsed().as_secs_f64();
+            for (p, z) in s.phi.iter_mut().zip(&zero.phi) {
+                *p = (*p - *z).max(T::zero());
+            }
+        }
         let first = s.tallies.first().map_or(f64::NAN, |t| t.unshot);
         let last = s.tallies.last().map_or(f64::NAN, |t| t.unshot / first);
         let sum = |f: fn(&super::OrderTally) -> f64| s.tallies.iter().map(f).sum::<f64>();
@@ -93,10 +125,49 @@ impl LpmMethod {
     }
 }
 
+impl LpmMethod {
+    /// The boundary radiance of every light of `problem`, and that of its directional
+    /// lights alone (`None` without directional lights).
+    fn boundary(
+        &self,
+        dirs: &super::Directions,
+        problem: &Problem<'_>,
+    ) -> Result<(BoundaryLight, Option<BoundaryLight>), SolverError> {
+        let mut all = BoundaryLight::none(dirs);
+        let mut dir = BoundaryLight::none(dirs);
+        let mut any_dir = false;
+        for l in crate::method::direct_lights(&self.name(), problem.lights)? {
+            let (b, is_dir) = match l {
+                DirectLight::Directional {
+                    direction,
+                    irradiance,
+                    ..
+                } => (
+                    BoundaryLight::directional(dirs, direction, irradiance)?,
+                    true,
+                ),
+                DirectLight::Environment { radiance, .. } => {
+                    (BoundaryLight::uniform(dirs, radiance), false)
+                }
+            };
+            for (k, r) in b.radiance.iter().enumerate() {
+                all.radiance[k] += r;
+                if is_dir {
+                    dir.radiance[k] += r;
+                }
+            }
+            any_dir |= is_dir;
+        }
+        Ok((all, any_dir.then_some(dir)))
+    }
+}
+
 impl Method for LpmMethod {
     fn name(&self) -> String {
         if self.config.formulas == Formulas::paper() {
             "lpm:paper".into()
+        } else if self.lights == LightInput::Baked {
+            "lpm:baked".into()
         } else {
             "lpm".into()
         }
@@ -108,7 +179,7 @@ impl Method for LpmMethod {
             f64: true,
             volume_source: true,
             anisotropic: true,
-            lights: LightInput::Baked,
+            lights: self.lights,
             conserves_energy: true,
         }
     }
@@ -146,7 +217,7 @@ pub const LPM: MethodFamily = MethodFamily {
     name: "lpm",
     title: "light propagation maps (discrete ordinates on exact ray tables, order by order)",
     paper: "Gruson et al., Light Propagation Maps on Parallel Graphics Architectures (LPM Eqs 1–6, Algorithms 1–2)",
-    variants: "paper",
+    variants: "baked, paper",
     params: &[(
         "m",
         "propagation cells per cube-face edge, 1..=64 (default 5: 150 directions, the paper's 25 per face)",
@@ -155,15 +226,17 @@ pub const LPM: MethodFamily = MethodFamily {
         let mut method = LpmMethod::default();
         match variant {
             None => {}
+            Some("baked") => method.lights = LightInput::Baked,
             Some("paper") => {
                 method.config.formulas = Formulas::paper();
                 method.config.wrap = WrapBc::Zero;
+                method.lights = LightInput::Baked;
             }
             Some(v) => {
                 return Err(SolverError::UnknownName {
                     what: "variant of lpm",
                     got: v.to_string(),
-                    known: "paper".into(),
+                    known: "baked, paper".into(),
                 });
             }
         }

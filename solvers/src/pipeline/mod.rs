@@ -14,6 +14,13 @@
 //!    `[medium] interpolation = "trilinear"` only the restriction follows the interpolant
 //!    ([`restrict::restrict_with`]); baking and the raymarch use the per-voxel values.
 //!
+//! **Methods that take the lights themselves** ([`crate::method::LightInput::Direct`]: LPM,
+//! POP) get no baked q_ri, only j when emission is rendered, and [`Problem::lights`]; their
+//! φ holds what the contract in [`crate::method::LightInput`] says (a directional light's
+//! scattered light only, so its single scattering stays the exact raymarch's; an
+//! environment's every order, so its single scattering is σs·φ/4π). The plan's `computes`
+//! says which pass renders which effect.
+//!
 //! [`planner`] turns the effect set (implied by the scene, restricted by its `[effects]`
 //! table and by [`PipelineConfig::effects`]) into the minimal list of passes; every render
 //! returns the plan and the passes that ran, with their wall-clock seconds.
@@ -50,7 +57,7 @@ pub mod restrict;
 pub use planner::{Pass, Plan, Planned, Skipped};
 
 use crate::fld::{FldMethod, FluxLimiter};
-use crate::method::{MethodRef, Problem, Stop, Tolerance};
+use crate::method::{LightInput, MethodRef, Problem, Stop, Tolerance};
 use crate::scene::{EffectSelection, Effects, EffectsError, Scene, SceneFile};
 use crate::{Backend, SolverError};
 use bake::BakedLight;
@@ -429,11 +436,18 @@ pub fn render_channels(
                     // The similarity variant's source is the δ-scaled one: the lights baked
                     // through σt' = σa + (1 − g)σs and scattered at σs' = (1 − g)σs (the
                     // forward peak g·σs stays in the beam); see `similarity_source`.
-                    let mut q =
+                    // A method that takes the lights itself gets no q_ri: the lights baked
+                    // here are for the single-scattering raymarch only (the contract of φ,
+                    // `LightInput`).
+                    let direct = config.method.capabilities().lights == LightInput::Direct;
+                    let mut q = if direct {
+                        vec![0.0; medium.grid.len()]
+                    } else {
                         match similarity_source(config, medium, phase, &baked, &scene.lights)? {
                             Some(q) => q,
                             None => bake::q_ri(medium, &baked),
-                        };
+                        }
+                    };
                     if *with_emission {
                         q.iter_mut()
                             .zip(&medium.emission)

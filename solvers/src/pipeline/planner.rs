@@ -89,6 +89,12 @@ pub struct Planned {
     pub pass: Pass,
     /// Why it runs.
     pub why: String,
+    /// The effects whose light this pass computes (names as in `[effects]`). The image
+    /// passes (`raymarch_*`) each render a disjoint set whose union is every rendered effect
+    /// but `attenuation` and `anisotropy` (no effect counted twice, `every_effect_is_…`);
+    /// `diffusion_solve` lists those its φ carries (rendered by `raymarch_multiple`); the
+    /// bakes compute intermediate data only (empty).
+    pub computes: Vec<String>,
 }
 
 /// A pass that does not run, and why.
@@ -147,6 +153,26 @@ pub fn plan(
     }
     // Lights enter the multiple-scattering solve as baked q_ri unless the method takes them.
     let baked_for_ms = ms && caps.lights == LightInput::Baked;
+    // A Direct method takes the lights itself (the contract of φ: `LightInput`): it refuses
+    // point and sphere lights, and the single scattering of an environment light is its.
+    let direct = ms && caps.lights == LightInput::Direct;
+    let mut by_solve = Vec::new();
+    if direct {
+        crate::method::direct_lights(&method.name(), lights)?;
+        for (i, l) in lights.iter().enumerate() {
+            if matches!(l, Light::Environment { .. }) {
+                if ss.contains(&i) {
+                    by_solve.push(i);
+                } else if implied.contains(Effect::SingleScattering { light: i }) {
+                    return Err(PipelineError::MethodCannot {
+                        method: method.name(),
+                        what: "exclude the single scattering of an environment light while rendering multiple scattering (its φ holds both); exclude both or neither",
+                    });
+                }
+            }
+        }
+    }
+    let ss: Vec<usize> = ss.into_iter().filter(|i| !by_solve.contains(i)).collect();
     let why_not = |e: Effect, what: &str| -> String {
         if implied.contains(e) {
             format!("{what} is excluded by the effect selection")
@@ -156,12 +182,19 @@ pub fn plan(
     };
     let mut passes = Vec::new();
     let mut skipped = Vec::new();
+    let mut warnings = Vec::new();
+    let mut carries = Vec::new();
     let mut baked = Vec::new();
     for (i, light) in lights.iter().enumerate() {
         let for_ss = ss.contains(&i);
         let name = format!("bake_{}[{i}]", kind(light));
         if !for_ss && !baked_for_ms {
-            let why = if !implied.contains(Effect::SingleScattering { light: i }) {
+            let why = if by_solve.contains(&i) {
+                format!(
+                    "{} takes light {i} itself and computes its single scattering",
+                    method.name()
+                )
+            } else if !implied.contains(Effect::SingleScattering { light: i }) {
                 "nothing scatters, so the light is never seen".to_string()
             } else {
                 format!(
@@ -190,7 +223,11 @@ pub fn plan(
                 .to_string(),
         };
         baked.push(i);
-        passes.push(Planned { pass, why });
+        passes.push(Planned {
+            pass,
+            why,
+            computes: Vec::new(),
+        });
     }
     if ms {
         let mut src = Vec::new();
@@ -202,15 +239,30 @@ pub fn plan(
             baked.clone()
         } else {
             if !direct.is_empty() {
-                src.push(format!("light(s) {direct:?} taken by the method itself"));
+                src.push(format!(
+                    "light(s) {direct:?} taken by the method itself (their uncollided light excluded, except an environment's: its single scattering is in φ)"
+                ));
             }
             direct
         };
+        carries = vec![Effect::MultipleScattering.to_string()];
+        carries.extend(
+            by_solve
+                .iter()
+                .map(|&light| Effect::SingleScattering { light }.to_string()),
+        );
         if emission {
             src.push("the emission j".into());
         }
         let anisotropic = caps.anisotropic && effects.contains(Effect::Anisotropy);
+        if !by_solve.is_empty() && effects.contains(Effect::Anisotropy) {
+            warnings.push(format!(
+                "the single scattering of environment light(s) {by_solve:?} is {}'s σs·φ/4π: isotropic in-scattering of the uncollided light, not the scene's phase function",
+                method.name()
+            ));
+        }
         passes.push(Planned {
+            computes: carries.clone(),
             pass: Pass::DiffusionSolve {
                 method: method.name(),
                 downsample,
@@ -255,6 +307,10 @@ pub fn plan(
     } else {
         let isotropic = !effects.contains(Effect::Anisotropy);
         passes.push(Planned {
+            computes: ss
+                .iter()
+                .map(|&light| Effect::SingleScattering { light }.to_string())
+                .collect(),
             pass: Pass::RaymarchSingle {
                 lights: ss.clone(),
                 isotropic,
@@ -273,6 +329,7 @@ pub fn plan(
         passes.push(Planned {
             pass: Pass::RaymarchMultiple,
             why: "σs·φ/4π of FLD Eq 8 (isotropic)".into(),
+            computes: carries,
         });
     } else {
         skipped.push(Skipped {
@@ -282,6 +339,7 @@ pub fn plan(
     }
     if emission {
         passes.push(Planned {
+            computes: vec![Effect::Emission.to_string()],
             pass: Pass::RaymarchEmission,
             why: "j/4π of FLD Eq 8 (unscattered emission)".into(),
         });
@@ -310,6 +368,7 @@ pub fn plan(
             })
             .sum();
         passes.push(Planned {
+            computes: vec![Effect::Background.to_string()],
             pass: Pass::RaymarchBackground { radiance },
             why: format!(
                 "the environment (radiance {radiance}) seen through the medium: L_env·T, order 0 (hide it with [camera] hide_background = true)"
@@ -330,7 +389,7 @@ pub fn plan(
         effects: effects.clone(),
         passes,
         skipped,
-        warnings: Vec::new(),
+        warnings,
     })
 }
 
@@ -356,6 +415,9 @@ impl Plan {
             let _ = writeln!(s, "passes:");
             for (k, p) in self.passes.iter().enumerate() {
                 let _ = writeln!(s, "  {}. {:<22} {}", k + 1, p.pass.name(), p.why);
+                if !p.computes.is_empty() {
+                    let _ = writeln!(s, "     {:<22} computes: {}", "", p.computes.join(", "));
+                }
             }
         }
         for w in &self.warnings {

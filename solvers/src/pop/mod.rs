@@ -10,6 +10,8 @@
 //!   resampled into it.
 //! * [`CpuPop`] ([`cpu`]): the propagation state of one ordinate (rayon, `f32`/`f64`).
 //! * [`solve`]: every ordinate, [`PopSolution::fluence_on`] gathers φ onto a world grid.
+//! * [`method::PopMethod`]: the registered method `pop[:per-cell|:heuristic]`, which takes
+//!   the lights itself (`LightInput::Direct`; what its φ holds is in [`method`]).
 //!
 //! ## The equations (POP Sec 4, as rebuilt)
 //! Per cell i and channel: magnitude L_i and anisotropy a_i; the radiance is
@@ -130,6 +132,7 @@ pub mod cpu;
 pub mod env;
 pub mod grid;
 pub mod kernel;
+pub mod method;
 #[cfg(test)]
 mod tests;
 
@@ -137,6 +140,7 @@ pub use cpu::{CpuPop, Ledger};
 pub use env::{Prefilter, environment_ordinates, fibonacci};
 pub use grid::{PropagationGrid, frame};
 pub use kernel::{Fractions, cumulative, decay, fractions, hg};
+pub use method::{POP, PopMethod};
 
 use crate::method::Stop;
 use crate::{Grid, Medium, Real, SolverError};
