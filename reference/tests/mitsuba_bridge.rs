@@ -12,25 +12,9 @@ use reference::compare::{ImageEstimate, compare};
 use reference::mitsuba::{MitsubaConfig, MitsubaError, MitsubaSettings, render};
 use solvers::scene::{Camera, Light, Phase, Projection, Sampler, Scene};
 use solvers::{Grid, Medium};
-use std::io::Write;
 
 fn mitsuba_or_skip(variant: &str) -> Option<MitsubaConfig> {
-    let cfg = MitsubaConfig::new(variant);
-    match cfg.probe() {
-        Ok(_) => Some(cfg),
-        Err(e @ MitsubaError::NotInstalled { .. }) => {
-            if std::env::var("SCATTERBENCH_REQUIRE_MITSUBA").as_deref() == Ok("1") {
-                panic!("SCATTERBENCH_REQUIRE_MITSUBA=1 but {e}");
-            }
-            // Written to the stream directly so that the test harness does not capture it.
-            let _ = writeln!(
-                std::io::stderr(),
-                "skipped: Mitsuba not installed (run scripts/setup-mitsuba.sh)"
-            );
-            None
-        }
-        Err(e) => panic!("{e}"),
-    }
+    MitsubaConfig::available_or_skip(variant).unwrap()
 }
 
 #[test]
