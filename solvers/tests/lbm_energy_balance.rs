@@ -59,11 +59,11 @@ fn lbm_outflow_equals_the_emitted_power_at_albedo_1() {
         let centre = g.index(n / 2, n / 2, n / 2);
         let surface = |phi: &[f64]| {
             let (mut sum, mut cnt) = (0.0, 0);
-            for idx in 0..g.len() {
+            for (idx, &v) in phi.iter().enumerate() {
                 let [x, y, z] = g.coords(idx);
-                let edge = [x, y, z].iter().any(|&v| v == 1 || v == n);
+                let edge = [x, y, z].iter().any(|&c| c == 1 || c == n);
                 if !g.is_boundary(x, y, z) && edge {
-                    sum += phi[idx];
+                    sum += v;
                     cnt += 1;
                 }
             }
