@@ -21,7 +21,11 @@
 //!   τ = 10, albedo 0.9): CDA at n = 17, 33, 65 took 6, 8, 13 cycles before and takes 5, 5
 //!   (n = 17, 33) with an asymptotic rate of 0.06–0.09 per cycle after; FLD-LP 6, 7, 8
 //!   before, 6, 7 after (rate 0.05–0.10); albedo 1: CDA 5, 5, FLD-LP 7, 7
-//!   (`tests/fld_multigrid.rs`).
+//!   (`tests/fld_multigrid.rs`). At n = 31 and 63 (cell-coarsened second level): CDA 6, 6
+//!   (albedo 0.9 and 1; rate 0.11–0.14), FLD-LP 7, 9 (albedo 0.9) and 9, 9 (albedo 1; rate
+//!   0.2–0.3): CDA is within the 25 % over n = 17…63, FLD-LP is not (6 → 9). On
+//!   the Fig 4 cloud FLD-LP takes 14, 22, 21 cycles at n = 17, 31, 33 and at 63 has not
+//!   reached 10⁻⁶ after 40 (7.6·10⁻⁶, rate 0.77): not grid-independent where vacuum is.
 //! * **Transfers:** linear prolongation of the correction in node positions (vertex axes
 //!   ½, ½; cell axes ¾, ¼; zero correction on the coarse Dirichlet layer); residual
 //!   restriction by its adjoint over 8 (full weighting); R̂φ as the medium's restriction.
