@@ -6,14 +6,29 @@
 //!
 //! * **Smoother:** the red-black sweep of FLD Algorithm 1 itself ([`CpuFld`], same arithmetic,
 //!   floors σ_ε and ε, θ-relaxed D update and projection φ ≥ 0), with ω = 1 (Gauss-Seidel).
-//! * **Levels:** cell-centred coarsening by 2 of the interior (m → ⌈m/2⌉ voxels, any m,
-//!   odd or not), plus the Dirichlet layer. Coarse voxel I covers fine voxels 2I − 1, 2I per
-//!   axis; the coarse medium keeps ∫σt and ∫σs (σt_c, σs_c = means over the 8 children, as
-//!   [`crate::pipeline::restrict`] does), and is rediscretised with the same floors (σ_ε of
-//!   the finest grid).
-//! * **Transfers:** trilinear prolongation of the correction (weights 3/4, 1/4 per axis, zero
-//!   correction on the Dirichlet layer); residual restriction by its adjoint, the cell-centred
-//!   full weighting (1, 3, 3, 1)/8 per axis; R̂φ = mean of the 8 children.
+//! * **Levels (per axis, see `Axis`).** The Dirichlet values sit at the layer voxels'
+//!   centres, so the m interior unknowns of an axis are nodes 1..m between boundary nodes 0
+//!   and m + 1. With m odd the axis is coarsened vertex-wise (coarse node c = fine node 2c,
+//!   the coarse layer on the fine one, m → (m − 1)/2); with m even cell-wise (coarse voxel
+//!   c covers fine 2c − 1, 2c, m → m/2, the coarse layer half a fine voxel outside). The
+//!   coarse medium keeps ∫σt and ∫σs (full weighting ¼, ½, ¼ on vertex axes, the mean of
+//!   the two children on cell axes) and is rediscretised with the same floors (σ_ε of the
+//!   finest grid). **Changed (this session):** every axis used to be coarsened cell-wise
+//!   with coarse voxel I covering fine 2I − 1, 2I; for odd m (every point-source grid) the
+//!   last coarse voxel then straddled the Dirichlet layer and the coarse boundary sat 2 fine
+//!   voxels from its centre instead of ½, a coarse operator that does not approximate the
+//!   fine one near the boundary. Measured (V(2,2), f64, cycles to R̄/j̄ < 10⁻⁶, point source
+//!   τ = 10, albedo 0.9): CDA at n = 17, 33, 65 took 6, 8, 13 cycles before and takes 5, 5
+//!   (n = 17, 33) with an asymptotic rate of 0.06–0.09 per cycle after; FLD-LP 6, 7, 8
+//!   before, 6, 7 after (rate 0.05–0.10); albedo 1: CDA 5, 5, FLD-LP 7, 7
+//!   (`tests/fld_multigrid.rs`). At n = 31 and 63 (cell-coarsened second level): CDA 6, 6
+//!   (albedo 0.9 and 1; rate 0.11–0.14), FLD-LP 7, 9 (albedo 0.9) and 9, 9 (albedo 1; rate
+//!   0.2–0.3): CDA is within the 25 % over n = 17…63, FLD-LP is not (6 → 9). On
+//!   the Fig 4 cloud FLD-LP takes 14, 22, 21 cycles at n = 17, 31, 33 and at 63 has not
+//!   reached 10⁻⁶ after 40 (7.6·10⁻⁶, rate 0.77): not grid-independent where vacuum is.
+//! * **Transfers:** linear prolongation of the correction in node positions (vertex axes
+//!   ½, ½; cell axes ¾, ¼; zero correction on the coarse Dirichlet layer); residual
+//!   restriction by its adjoint over 8 (full weighting); R̂φ as the medium's restriction.
 //! * **D on every level:** before a residual is formed, D = F(R(φ))/σ is recomputed from that
 //!   level's φ (FLD Eqs 33–35, one-sided ∇φ on the Dirichlet layer, as the SOR does).
 //!
@@ -28,21 +43,20 @@
 //!   up to 200 sweeps run until the sweep residual drops by 10⁻³.
 //! * **Cycles:** V(2, 2) by default; F-cycles on request. One work unit = one fine sweep;
 //!   a sweep on level ℓ counts 8^(−ℓ).
-//! * **Coarse Dirichlet layer.** It sits half a fine voxel further out than the fine one
-//!   (cell-centred coarsening); by default its correction is zero. Extrapolating it linearly
-//!   to zero at the fine layer's position ([`MgConfig::extrapolated_layer`]) helps CDA but
-//!   breaks FLD-LP at albedo 1 (measured, see there), so it is off.
+//! * **Coarse Dirichlet layer.** On vertex axes it coincides with the fine one (zero
+//!   correction is exact); on cell axes it sits half a fine voxel further out and by default
+//!   its correction is zero. Extrapolating it linearly to zero at the parent layer's
+//!   position ([`MgConfig::extrapolated_layer`], cell axes only) is kept as an option; its
+//!   earlier measurement (see there) was made with the old, straddling coarsening.
 //! * **Known limitations (measured, not fixed).** Where vacuum (D = 1/(3σ_ε), a
-//!   near-perfect conductor) touches the layer, the coarse correction still overshoots:
-//!   CDA on the Fig 4 cloud at 24³ alternates R̄/j̄ ≈ 2 ↔ 90 and ends `Stalled`; CDA on
-//!   30 %-vacuum white noise diverges and ends `Stalled`; FLD-LP there stalls at 4·10⁻⁴, and
-//!   both stall on 95 %-vacuum noise (as SOR does). FLD-LP on the Fig 4 cloud converges
-//!   (32 cycles to 1e-9, φ within 1e-6 of SOR). On the point source (no vacuum) every
-//!   limiter converges in 10 V-cycles to 1e-10 at 17³ (SOR: 112–117 iterations at ω = 1.8,
-//!   φ within 2·10⁻¹⁰); cycles to 1e-6 at n = 17, 33, 65 are 6, 8, 13 (CDA) and 6, 7, 8
-//!   (FLD-LP): growing slowly, not yet within the 25 %. All pinned by
-//!   `tests/fld_multigrid.rs`.
-
+//!   near-perfect conductor) fills part of the grid, the rediscretised coarse CDA operator
+//!   does not approximate the fine one: CDA on the Fig 4 cloud (n = 17, 33) reduces the
+//!   residual ×0.05–0.1 in the first cycle and then diverges (×2–6 per cycle); the stall
+//!   rule ends it `Stalled` (or `NonFinite`), never `Converged`. FLD-LP on the Fig 4 cloud
+//!   converges (14 and 21 cycles to 10⁻⁶ at n = 17, 33, rate ≈ 0.35–0.55 per cycle). Both
+//!   stall on 95 %-vacuum noise (as SOR does). Operator-dependent (Galerkin-type) coarse
+//!   coefficients in vacuum are the candidate fix, not tried.
+//!
 use super::{Boundary, CpuFld, FldConfig, FldSolution};
 use crate::fld::residual::ResidualWindow;
 use crate::gpu::Timer;
@@ -72,10 +86,11 @@ pub struct MgConfig {
     pub post: usize,
     /// Cycles without a 10 % gain on the best residual before [`Stop::Stalled`].
     pub stall_cycles: usize,
-    /// Coarse levels: set the correction on the Dirichlet layer to −1/3 of its inward
-    /// neighbour's after every sweep (linear extrapolation to zero at the fine layer's
-    /// position, half a fine voxel inside the coarse layer). `false` keeps it zero.
-    /// Default `false`. Measured: it lowers CDA's V-cycles to 1e-6 on the point source at
+    /// Coarse levels: on cell-coarsened axes set the correction on the Dirichlet layer to
+    /// −1/3 of its inward neighbour's after every sweep (linear extrapolation to zero at the
+    /// parent layer's position, half a fine voxel inside the coarse layer); vertex axes keep
+    /// zero. `false` keeps it zero everywhere. Default `false`. Measured with the earlier
+    /// all-cell coarsening (not re-measured since): it lowered CDA's V-cycles to 1e-6 on the point source at
     /// n = 17, 33, 65 from 6, 8, 13 to 6, 7, 9 (FLD-LP: 6, 7, 8 either way), but makes
     /// FLD-LP at albedo 1 (17³) stall at R̄/j̄ ≈ 2·10⁻³ where it otherwise converges in 19
     /// cycles to 1e-9.
@@ -102,6 +117,9 @@ struct Level<T> {
     absorb: Vec<f64>,
     /// R̂φ of the current visit (coarse levels), the base of the correction.
     base: Vec<f64>,
+    /// Per axis: this level was coarsened cell-wise from its parent (its layer lies half a
+    /// parent voxel outside the parent's layer; see [`Axis`]).
+    cell_axes: [bool; 3],
 }
 
 /// The FAS multigrid solve of one medium (CPU, `f32` or `f64`).
@@ -191,7 +209,9 @@ impl<T: Real> CpuMultigrid<T> {
                 albedo.iter().map(|&x| T::c(x)).collect(),
                 vec![T::zero(); cg.len()],
             )?;
-            levels.push(Self::level(CpuFld::mg_level(&cm, &coarse_cfg)?));
+            let mut lv = Self::level(CpuFld::mg_level(&cm, &coarse_cfg)?);
+            lv.cell_axes = axes(&g).map(|a| !a.vertex);
+            levels.push(lv);
             (g, st, ss) = (cg, cst, css);
         }
         Ok(Self {
@@ -218,6 +238,7 @@ impl<T: Real> CpuMultigrid<T> {
             sig,
             absorb,
             base: Vec::new(),
+            cell_axes: [false; 3],
         }
     }
 
@@ -247,7 +268,7 @@ impl<T: Real> CpuMultigrid<T> {
         if l > 0 && self.mg.extrapolated_layer {
             let lv = &mut self.levels[l];
             let mut phi = lv.fld.mg_fields()[0].clone();
-            extrapolate_layer(&lv.grid, &lv.base, &mut phi);
+            extrapolate_layer(&lv.grid, lv.cell_axes, &lv.base, &mut phi);
             lv.fld.mg_set(0, &phi);
         }
         r
@@ -291,7 +312,7 @@ impl<T: Real> CpuMultigrid<T> {
         let d = self.fresh_d(l, &phi);
         let r = self.residual(l, &phi, &d, &f);
         let (fg, cg) = (self.levels[l].grid, self.levels[l + 1].grid);
-        let phi_c0 = restrict_mean(&fg, &cg, &phi, true);
+        let phi_c0 = restrict_mean(&fg, &cg, &phi);
         let d_c = self.fresh_d(l + 1, &phi_c0);
         let lc = apply(&cg, &phi_c0, &d_c, &self.levels[l + 1].absorb);
         let rc = restrict_fw(&fg, &cg, &r);
@@ -459,86 +480,148 @@ fn apply(g: &Grid, phi: &[f64], d: &[f64], absorb: &[f64]) -> Vec<f64> {
     out
 }
 
-/// The coarse grid of `g` and its medium: coarse voxel I covers fine 2I − 1, 2I per axis
-/// (means over the 8 children); the coarse Dirichlet layer copies its nearest fine voxel.
+/// How one axis coarsens. The Dirichlet values sit at the centres of the layer voxels, so
+/// the interior unknowns 1..m are the nodes of a grid whose boundary nodes are 0 and m + 1.
+/// * `m` odd (m + 1 even): **vertex** coarsening, coarse node c = fine node 2c; the coarse
+///   layer lies exactly on the fine one.
+/// * `m` even: **cell** coarsening, coarse voxel c covers fine 2c − 1, 2c (centre 2c − ½);
+///   the coarse layer lies half a fine voxel outside the fine one (the true boundary is ¾ of
+///   a coarse voxel from the first coarse centre).
+#[derive(Debug, Clone, Copy)]
+struct Axis {
+    n: usize,
+    nc: usize,
+    vertex: bool,
+}
+
+impl Axis {
+    fn new(n: usize) -> Self {
+        let m = n - 2;
+        if m % 2 == 1 {
+            Self {
+                n,
+                nc: n.div_ceil(2),
+                vertex: true,
+            }
+        } else {
+            Self {
+                n,
+                nc: m / 2 + 2,
+                vertex: false,
+            }
+        }
+    }
+
+    /// Prolongation weights of fine interior index i: (coarse index, weight), linear in
+    /// the node positions.
+    fn prolong(&self, i: usize) -> [(usize, f64); 2] {
+        if self.vertex {
+            if i % 2 == 0 {
+                [(i / 2, 1.0), (i / 2, 0.0)]
+            } else {
+                [(i / 2, 0.5), (i / 2 + 1, 0.5)]
+            }
+        } else {
+            let c = i.div_ceil(2);
+            if i % 2 == 1 {
+                [(c, 0.75), (c - 1, 0.25)]
+            } else {
+                [(c, 0.75), (c + 1, 0.25)]
+            }
+        }
+    }
+
+    /// Weights (fine index, weight) of coarse interior index c for the medium and R̂φ:
+    /// the mean over the fine voxels it covers (cell) or the full weighting ¼, ½, ¼
+    /// (vertex; keeps ∫σ). Injection for R̂φ on vertex axes was measured and rejected: with
+    /// it FLD-LP stalls at R̄/j̄ ≈ 2–4·10⁻² (rate 1.00 per cycle) on the point source at
+    /// n = 33 and at albedo 1 (n = 17, 33); with full weighting both converge in 6–7 cycles.
+    fn mean(&self, c: usize) -> Vec<(usize, f64)> {
+        match self.vertex {
+            true => vec![(2 * c - 1, 0.25), (2 * c, 0.5), (2 * c + 1, 0.25)],
+            false => vec![(2 * c - 1, 0.5), (2 * c, 0.5)],
+        }
+    }
+
+    /// Nearest fine layer index of a coarse layer index.
+    fn layer(&self, c: usize) -> usize {
+        if c == 0 { 0 } else { self.n - 1 }
+    }
+}
+
+/// The three axis maps of a grid and its coarse grid.
+fn axes(g: &Grid) -> [Axis; 3] {
+    g.n.map(Axis::new)
+}
+
+/// The coarse grid of `g` (see [`Axis`]) and its medium.
 fn restrict_medium(
     g: &Grid,
     st: &[f64],
     ss: &[f64],
 ) -> Result<(Grid, Vec<f64>, Vec<f64>), SolverError> {
-    let nc = g.n.map(|n| (n - 2).div_ceil(2) + 2);
-    let cg = Grid::with_origin(nc, 2.0 * g.dl, g.origin.map(|o| o - g.dl))?;
-    Ok((
-        cg,
-        restrict_mean(g, &cg, st, true),
-        restrict_mean(g, &cg, ss, true),
-    ))
+    let ax = axes(g);
+    let nc = ax.map(|a| a.nc);
+    let origin = [0, 1, 2].map(|d| g.origin[d] - if ax[d].vertex { 0.5 } else { 1.0 } * g.dl);
+    let cg = Grid::with_origin(nc, 2.0 * g.dl, origin)?;
+    Ok((cg, restrict_mean(g, &cg, st), restrict_mean(g, &cg, ss)))
 }
 
-/// Nearest fine index of coarse index `c` on an axis with `n` fine and `nc` coarse voxels.
-fn c2f(c: usize, n: usize, nc: usize) -> usize {
-    if c == 0 {
-        0
-    } else if c + 1 == nc {
-        n - 1
-    } else {
-        2 * c - 1
-    }
-}
-
-/// Mean over the 8 children (interior), nearest fine voxel on the coarse Dirichlet layer.
-fn restrict_mean(g: &Grid, cg: &Grid, v: &[f64], _layer: bool) -> Vec<f64> {
+/// Coarse interior values as [`Axis::mean`] (tensor product); the coarse Dirichlet layer
+/// copies the nearest fine layer voxel.
+fn restrict_mean(g: &Grid, cg: &Grid, v: &[f64]) -> Vec<f64> {
+    let ax = axes(g);
     let mut out = vec![0.0; cg.len()];
-    for kc in 0..cg.n[2] {
-        for jc in 0..cg.n[1] {
-            for ic in 0..cg.n[0] {
-                let c = cg.index(ic, jc, kc);
-                if cg.is_boundary(ic, jc, kc) {
-                    out[c] = v[g.index(
-                        c2f(ic, g.n[0], cg.n[0]),
-                        c2f(jc, g.n[1], cg.n[1]),
-                        c2f(kc, g.n[2], cg.n[2]),
-                    )];
-                    continue;
-                }
-                let mut s = 0.0;
-                for dk in 0..2 {
-                    for dj in 0..2 {
-                        for di in 0..2 {
-                            s += v[g.index(2 * ic - 1 + di, 2 * jc - 1 + dj, 2 * kc - 1 + dk)];
+    let (cnx, cny) = (cg.n[0], cg.n[1]);
+    out.par_chunks_mut(cnx * cny)
+        .enumerate()
+        .for_each(|(kc, slab)| {
+            for jc in 0..cny {
+                for ic in 0..cnx {
+                    let o = &mut slab[jc * cnx + ic];
+                    let c = [ic, jc, kc];
+                    if cg.is_boundary(ic, jc, kc) {
+                        let f = [0, 1, 2].map(|d| {
+                            if c[d] == 0 || c[d] + 1 == cg.n[d] {
+                                ax[d].layer(c[d])
+                            } else {
+                                if ax[d].vertex { 2 * c[d] } else { 2 * c[d] - 1 }
+                            }
+                        });
+                        *o = v[g.index(f[0], f[1], f[2])];
+                        continue;
+                    }
+                    let [wx, wy, wz] = [0, 1, 2].map(|d| ax[d].mean(c[d]));
+                    let mut s = 0.0;
+                    for &(k, a) in &wz {
+                        for &(j, b) in &wy {
+                            for &(i, w) in &wx {
+                                s += a * b * w * v[g.index(i, j, k)];
+                            }
                         }
                     }
+                    *o = s;
                 }
-                out[c] = s / 8.0;
             }
-        }
-    }
+        });
     out
 }
 
-/// Per-axis prolongation weights of fine index i (interior): (coarse index, weight) pairs.
-fn weights(i: usize) -> [(usize, f64); 2] {
-    let c = i.div_ceil(2);
-    if i % 2 == 1 {
-        [(c, 0.75), (c - 1, 0.25)]
-    } else {
-        [(c, 0.75), (c + 1, 0.25)]
-    }
-}
-
-/// Full weighting (1, 3, 3, 1)/8 per axis, the adjoint of [`prolong_add`] over 8; the fine
-/// residual is 0 on the Dirichlet layer.
+/// Residual restriction: the adjoint of [`prolong_add`] over 8 (full weighting: ¼, ½, ¼ per
+/// vertex axis, (1, 3, 3, 1)/8 per cell axis); the fine residual is 0 on the layer.
 fn restrict_fw(g: &Grid, cg: &Grid, r: &[f64]) -> Vec<f64> {
+    let ax = axes(g);
     let mut out = vec![0.0; cg.len()];
     for k in 1..g.n[2] - 1 {
         for j in 1..g.n[1] - 1 {
             for i in 1..g.n[0] - 1 {
                 let v = r[g.index(i, j, k)] / 8.0;
-                for (ck, wk) in weights(k) {
-                    for (cj, wj) in weights(j) {
-                        for (ci, wi) in weights(i) {
-                            if !cg.is_boundary(ci, cj, ck) {
-                                out[cg.index(ci, cj, ck)] += wi * wj * wk * v;
+                for (ck, wk) in ax[2].prolong(k) {
+                    for (cj, wj) in ax[1].prolong(j) {
+                        for (ci, wi) in ax[0].prolong(i) {
+                            let w = wi * wj * wk;
+                            if w != 0.0 && !cg.is_boundary(ci, cj, ck) {
+                                out[cg.index(ci, cj, ck)] += w * v;
                             }
                         }
                     }
@@ -549,43 +632,61 @@ fn restrict_fw(g: &Grid, cg: &Grid, r: &[f64]) -> Vec<f64> {
     out
 }
 
-/// Coarse Dirichlet layer: φ = base + e with e = −1/3 of the correction at the nearest
-/// interior voxel (see [`MgConfig::extrapolated_layer`]).
-fn extrapolate_layer(g: &Grid, base: &[f64], phi: &mut [f64]) {
+/// φ += the interpolated coarse correction (zero on the coarse Dirichlet layer),
+/// projected onto φ ≥ 0 as the smoother's update is.
+fn prolong_add(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64]) {
+    let ax = axes(g);
+    let (nx, ny, nz) = (g.n[0], g.n[1], g.n[2]);
+    phi.par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(k, slab)| {
+            if k == 0 || k + 1 == nz {
+                return;
+            }
+            for j in 1..ny - 1 {
+                for i in 1..nx - 1 {
+                    let mut s = 0.0;
+                    for (ck, wk) in ax[2].prolong(k) {
+                        for (cj, wj) in ax[1].prolong(j) {
+                            for (ci, wi) in ax[0].prolong(i) {
+                                if !cg.is_boundary(ci, cj, ck) {
+                                    s += wi * wj * wk * e[cg.index(ci, cj, ck)];
+                                }
+                            }
+                        }
+                    }
+                    let p = &mut slab[j * nx + i];
+                    let v = *p + s;
+                    *p = if v < 0.0 { 0.0 } else { v };
+                }
+            }
+        });
+}
+
+/// Coarse Dirichlet layer: φ = base + e, with e = −⅓ of the correction at the nearest
+/// interior voxel per cell-coarsened axis the layer voxel lies outside of (linear
+/// extrapolation to zero at the parent's layer, ¾ of a coarse voxel from the first centre),
+/// and e = 0 if it lies outside a vertex-coarsened axis (the layers coincide); see
+/// [`MgConfig::extrapolated_layer`].
+fn extrapolate_layer(g: &Grid, cell: [bool; 3], base: &[f64], phi: &mut [f64]) {
     let [nx, ny, nz] = g.n;
     let cl = |x: usize, n: usize| x.clamp(1, n - 2);
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
-                if g.is_boundary(i, j, k) {
-                    let q = g.index(cl(i, nx), cl(j, ny), cl(k, nz));
-                    let p = g.index(i, j, k);
-                    let v = base[p] - (phi[q] - base[q]) / 3.0;
-                    phi[p] = if v < 0.0 { 0.0 } else { v };
+                if !g.is_boundary(i, j, k) {
+                    continue;
                 }
-            }
-        }
-    }
-}
-
-/// φ += trilinear interpolation of the coarse correction (the coarse Dirichlet layer's
-/// correction included: 0 unless [`MgConfig::extrapolated_layer`]),
-/// projected onto φ ≥ 0 as the smoother's update is.
-fn prolong_add(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64]) {
-    for k in 1..g.n[2] - 1 {
-        for j in 1..g.n[1] - 1 {
-            for i in 1..g.n[0] - 1 {
-                let mut s = 0.0;
-                for (ck, wk) in weights(k) {
-                    for (cj, wj) in weights(j) {
-                        for (ci, wi) in weights(i) {
-                            s += wi * wj * wk * e[cg.index(ci, cj, ck)];
-                        }
+                let c = [i, j, k];
+                let mut f = 1.0;
+                for d in 0..3 {
+                    if c[d] == 0 || c[d] + 1 == g.n[d] {
+                        f *= if cell[d] { -1.0 / 3.0 } else { 0.0 };
                     }
                 }
-                let p = &mut phi[g.index(i, j, k)];
-                let v = *p + s;
-                *p = if v < 0.0 { 0.0 } else { v };
+                let q = g.index(cl(i, nx), cl(j, ny), cl(k, nz));
+                let p = g.index(i, j, k);
+                phi[p] = base[p] + f * (phi[q] - base[q]);
             }
         }
     }

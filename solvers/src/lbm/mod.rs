@@ -105,6 +105,30 @@
 //! (ρ of LB Section 3) and the 18 moving ones with [`Absorption::Loss`] (where the rest slot
 //! holds only the density absorbed in the last step, which is counted as `absorbed`).
 //!
+//! ## Emissive albedo-1 media (issue 12, items 3–4: what is the method, measured)
+//! `emissive_cube` (16³, j = 1, albedo 1, no lights) has LBM 27–48 % below the path tracer
+//! (0.0221 at σt = 100, downsample 1, vs 0.0305 ± 0.0003) while CDA/FLD with the Marshak
+//! face match within 1.3 %. Measured causes, in order of elimination:
+//! * **Not an energy leak.** `tests/lbm_energy_balance.rs` (8³ emissive cube in one vacuum
+//!   layer, f64, lattice tolerance 10⁻¹¹ per step): outflow/source = 1.000000 at σt·Δl =
+//!   0.01, 1 and 100 (35, 147, 248 steps). The lattice conserves energy; every unit emitted
+//!   leaves.
+//! * **Not under-convergence.** `emissive_cube --methods lbm --tol 1e-7` (per-step change
+//!   10⁻⁹): σt = 100, ds 1 mean 0.0221478 (659 steps) vs 0.0221473 at the default (391); ds 4
+//!   0.0169889 vs 0.0169888.
+//! * **The method: the lattice cannot diffuse slower than one collision per site.**
+//!   σt,lat = 1 − e^(−σtΔl) saturates at 1, so the lattice mean free path never falls below
+//!   ≈ 1.2 Δl and D_LB/v̄ ≥ 0.414 Δl, against transport's 1/(3σt) = 0.053 Δl at σt·Δl = 6.25
+//!   (σt = 100 on 16³; 7.8× too diffusive) and 0.0033 Δl at σt·Δl = 100 (124×). The same
+//!   test measures LBM/`cda:marshak` fluence at the centre 1.69 / 0.871 / 0.020 and over the
+//!   surface layer 1.39 / 1.03 / 0.029 at σt·Δl = 0.01 / 1 / 100: agreement at σt·Δl ≈ 1, a
+//!   fluence far too low once the voxels are optically thick (and too high in the free
+//!   streaming limit, where the lattice's 18 discrete directions and its per-step transport
+//!   differ from transport). The camera sees the surface layer, so the image is low; the
+//!   remedy is resolution (σt·Δl ≲ 1), not a change of the lattice, which is LB's.
+//!   Not measured: how much of the image gap each of the surface φ and the pipeline's φ
+//!   interpolation in the first voxel explain.
+//!
 //! ## Supported lights ([`solve_scene`])
 //! Directional lights (boundary injection) and volume emission j (source term). Point, sphere
 //! and environment lights return [`SolverError::Unsupported`].
