@@ -82,7 +82,7 @@
 //!   contiguous slices (ray, U, σt, T; the lateral stride is 1 in every layout) through
 //!   `transport_row`, (b) [`cpu::phis`] is branch-free (series and direct form both
 //!   evaluated, one selected) and in f32 uses [`cpu::exp_neg_f32`] (Cody–Waite reduction,
-//!   degree-7 polynomial, 2^k from bits: ≤ 2 ulp, test `exp_neg_f32_matches_f64`; E, φ1, φ2
+//!   degree-7 polynomial, 2^k from bits: 1.15 ulp measured, bound 2, test `exp_neg_f32_matches_f64`; E, φ1, φ2
 //!   within 6.3·10⁻⁸, 1.6·10⁻⁷, 3.7·10⁻⁷ of f64, `phis_f32_matches_f64`), so the loop
 //!   compiles to packed SSE (126 packed mul/add/div in the sweep), (c) the collect runs
 //!   direction-outer over each z-slice into six SoA accumulators, keeping the per-voxel
