@@ -48,8 +48,7 @@ const SUMMARY_ITERATIONS: usize = 5;
 const PROBE_REPS: usize = 5;
 /// Output of the summary, relative to the workspace root.
 const CSV_PATH: &str = "results/bench/diffusion_cpu.csv";
-const CSV_HEADER: &str =
-    "n,precision,method,ms_per_iter,mvox_per_s,effective_gbs,triad_gbs,copy_gbs,ratio_triad,triad_dram_gbs,ratio_triad_dram";
+const CSV_HEADER: &str = "n,precision,method,ms_per_iter,mvox_per_s,effective_gbs,triad_gbs,copy_gbs,ratio_triad,triad_dram_gbs,ratio_triad_dram";
 
 /// The two benchmarked diffusion methods.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -323,7 +322,17 @@ fn table(rows: &[Row]) -> String {
     let _ = writeln!(
         out,
         "{:>5} {:>4} {:>7} {:>10} {:>9} {:>9} {:>9} {:>9} {:>11} {:>9} {:>10}",
-        "n", "prec", "method", "ms/iter", "Mvox/s", "eff GB/s", "triad", "copy", "eff/triad", "dram", "eff/dram"
+        "n",
+        "prec",
+        "method",
+        "ms/iter",
+        "Mvox/s",
+        "eff GB/s",
+        "triad",
+        "copy",
+        "eff/triad",
+        "dram",
+        "eff/dram"
     );
     for r in rows {
         let _ = writeln!(
