@@ -120,7 +120,9 @@
 //!   loop structure is unchanged). Accuracy (tests in `limiter.rs`, 20001 log-spaced R in
 //!   [10⁻⁸, 10⁸] plus 0 and huge R): ≤ 4 ulp f32, ≤ 10⁻¹² f64 pinned. Bench
 //!   (`benches/benches/diffusion.rs`, vacuum cloud, 2-core AMD EPYC, 32 MiB L3, shared
-//!   machine at load 12–16, so absolute times are ~5× the quiet ones), ms per red-black
+//!   machine: load 4 → 13.6 during the before run, 12.8 → 15.7 during the after run, so
+//!   absolute times are several times the quiet ones and the before/after times are not
+//!   like for like), ms per red-black
 //!   iteration before → after, same-run ratio FLD-LP/CDA time in brackets:
 //!   256³ f32 CDA 240.7 → 335.1, FLD-LP 1976 → 1059 (8.2 → 3.2); 256³ f64 CDA 397.7 →
 //!   516.1, FLD-LP 4798 → 1627 (12.1 → 3.2); 128³ f32 FLD-LP 255.5 → 198.4 (10.6 → 3.0);
