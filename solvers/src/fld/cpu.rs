@@ -466,7 +466,7 @@ impl<T: Real> CpuFld<T> {
                 self.pass_with::<true, M, _>(c, |r| FluxLimiter::Kershaw.eval(r))
             }
             // n = 2 gets its own (branch-free, vectorising) instance; other n call `powf`.
-            FluxLimiter::Larsen(n) if n == 2.0 => {
+            FluxLimiter::Larsen(2.0) => {
                 self.pass_with::<true, M, _>(c, |r| FluxLimiter::Larsen(2.0).eval(r))
             }
             FluxLimiter::Larsen(n) => {

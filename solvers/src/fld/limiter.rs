@@ -89,7 +89,7 @@ impl FluxLimiter {
             FluxLimiter::Sum => T::one() / (three + r),
             FluxLimiter::Max => T::one() / three.max(r),
             FluxLimiter::Kershaw => kershaw(r),
-            FluxLimiter::Larsen(n) if n == 2.0 => larsen2(r),
+            FluxLimiter::Larsen(2.0) => larsen2(r),
             FluxLimiter::Larsen(n) => {
                 // (3ⁿ + Rⁿ)^(−1/n) = 1 / (m · ((3/m)ⁿ + (R/m)ⁿ)^(1/n)), m = max(3, R): no overflow.
                 let n = T::c(n);
