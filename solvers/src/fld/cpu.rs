@@ -465,6 +465,10 @@ impl<T: Real> CpuFld<T> {
             FluxLimiter::Kershaw => {
                 self.pass_with::<true, M, _>(c, |r| FluxLimiter::Kershaw.eval(r))
             }
+            // n = 2 gets its own (branch-free, vectorising) instance; other n call `powf`.
+            FluxLimiter::Larsen(2.0) => {
+                self.pass_with::<true, M, _>(c, |r| FluxLimiter::Larsen(2.0).eval(r))
+            }
             FluxLimiter::Larsen(n) => {
                 self.pass_with::<true, M, _>(c, move |r| FluxLimiter::Larsen(n).eval(r))
             }

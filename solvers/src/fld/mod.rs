@@ -112,6 +112,24 @@
 //!   this repository that are anisotropic have g = 0.3, where `paper` is closer in every case.
 //!   The plan warns when `paper` runs with |g| > 0.5. Pinned by
 //!   `reference/tests/anisotropy_scaling.rs` (paper closer at g = 0.3, similarity at 0.99).
+//! * **A limiter that vectorises (issue 15 item 3; [`limiter`]).** LP (and Kershaw,
+//!   Larsen-2, sum, max) are evaluated branch-free with no libm call: LP is a Padé form of
+//!   its continued fraction for R ≤ 2 and the closed form with an inline polynomial exp
+//!   above, both computed and one selected, so the row loop of `cpu.rs` has no branch or
+//!   call left in it (default SSE2 target, no `target-cpu`, no runtime dispatch; the sweep's
+//!   loop structure is unchanged). Accuracy (tests in `limiter.rs`, 20001 log-spaced R in
+//!   [10⁻⁸, 10⁸] plus 0 and huge R): ≤ 4 ulp f32, ≤ 10⁻¹² f64 pinned. Bench
+//!   (`benches/benches/diffusion.rs`, vacuum cloud, 2-core AMD EPYC, 32 MiB L3, shared
+//!   machine: load 4 → 13.6 during the before run, 12.8 → 15.7 during the after run, so
+//!   absolute times are several times the quiet ones and the before/after times are not
+//!   like for like), ms per red-black
+//!   iteration before → after, same-run ratio FLD-LP/CDA time in brackets:
+//!   256³ f32 CDA 240.7 → 335.1, FLD-LP 1976 → 1059 (8.2 → 3.2); 256³ f64 CDA 397.7 →
+//!   516.1, FLD-LP 4798 → 1627 (12.1 → 3.2); 128³ f32 FLD-LP 255.5 → 198.4 (10.6 → 3.0);
+//!   128³ f64 FLD-LP 711 → 237 (22.1 → 4.1). Ratio to the STREAM-rule triad of the same
+//!   run at 256³: FLD-LP f32 0.041 → 0.073, f64 0.073 → 0.102 (triad 5.7–7.8 GB/s under
+//!   that load instead of ~45 quiet). Issue 15's ≥ 0.4 is not shown by these runs
+//!   (`results/bench/diffusion_cpu.csv`, before: `diffusion_cpu_before_lim.csv`).
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.

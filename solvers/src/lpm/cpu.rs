@@ -39,43 +39,87 @@ pub struct CpuLpm<T> {
 /// (E, φ1, φ2) of optical depth τ: E = e^{−τ}, φ1 = (1 − E)/τ, φ2 = (τ − 1 + E)/τ² (spec
 /// §1.6); below `ts` the series (8 terms each, truncation < 10⁻¹⁶ at the thresholds used)
 /// with E = 1 − τφ1, so vacuum is exact (D29).
+///
+/// Branch-free: both the series and the direct form are evaluated and one is selected, so a
+/// row of sub-segments vectorises. In f32 the direct form uses [`exp_neg_f32`] (no libm
+/// call); in f64 it keeps libm's `expm1`.
 #[inline(always)]
 pub fn phis<T: Real>(tau: T, ts: T) -> (T, T, T) {
-    if tau < ts {
-        let c = |x: f64| T::c(x);
-        let f1 = T::one()
-            - tau
-                * (c(1.0 / 2.0)
-                    - tau
-                        * (c(1.0 / 6.0)
-                            - tau
-                                * (c(1.0 / 24.0)
-                                    - tau
-                                        * (c(1.0 / 120.0)
-                                            - tau
-                                                * (c(1.0 / 720.0)
-                                                    - tau
-                                                        * (c(1.0 / 5040.0)
-                                                            - tau * c(1.0 / 40320.0)))))));
-        let f2 = c(1.0 / 2.0)
-            - tau
-                * (c(1.0 / 6.0)
-                    - tau
-                        * (c(1.0 / 24.0)
-                            - tau
-                                * (c(1.0 / 120.0)
-                                    - tau
-                                        * (c(1.0 / 720.0)
-                                            - tau
-                                                * (c(1.0 / 5040.0)
-                                                    - tau
-                                                        * (c(1.0 / 40320.0)
-                                                            - tau * c(1.0 / 362880.0)))))));
-        (T::one() - tau * f1, f1, f2)
+    let c = |x: f64| T::c(x);
+    let f1s = T::one()
+        - tau
+            * (c(1.0 / 2.0)
+                - tau
+                    * (c(1.0 / 6.0)
+                        - tau
+                            * (c(1.0 / 24.0)
+                                - tau
+                                    * (c(1.0 / 120.0)
+                                        - tau
+                                            * (c(1.0 / 720.0)
+                                                - tau
+                                                    * (c(1.0 / 5040.0)
+                                                        - tau * c(1.0 / 40320.0)))))));
+    let f2s = c(1.0 / 2.0)
+        - tau
+            * (c(1.0 / 6.0)
+                - tau
+                    * (c(1.0 / 24.0)
+                        - tau
+                            * (c(1.0 / 120.0)
+                                - tau
+                                    * (c(1.0 / 720.0)
+                                        - tau
+                                            * (c(1.0 / 5040.0)
+                                                - tau
+                                                    * (c(1.0 / 40320.0)
+                                                        - tau * c(1.0 / 362880.0)))))));
+    if is_f32::<T>() {
+        // Direct form for τ ≥ ts = 0.5: 1 − E ≥ 0.39, so E itself (not expm1) loses nothing.
+        let e = T::c(exp_neg_f32(tau.f() as f32) as f64);
+        let inv = T::one() / tau;
+        let f1d = (T::one() - e) * inv;
+        let f2d = (tau - T::one() + e) * inv * inv;
+        let small = tau < ts;
+        let f1 = if small { f1s } else { f1d };
+        let f2 = if small { f2s } else { f2d };
+        let e = if small { T::one() - tau * f1s } else { e };
+        (e, f1, f2)
+    } else if tau < ts {
+        (T::one() - tau * f1s, f1s, f2s)
     } else {
         let em1 = (-tau).exp_m1();
         (T::one() + em1, -em1 / tau, (tau + em1) / (tau * tau))
     }
+}
+
+/// Whether `T` is single precision (a constant after monomorphisation).
+#[inline(always)]
+fn is_f32<T: Real>() -> bool {
+    T::epsilon().f() > 1e-10
+}
+
+/// e^{−τ} in f32 for τ ≥ 0 without a libm call, so that LLVM vectorises it: τ is clamped to
+/// 80 (e^{−80} = 1.8·10⁻³⁵, still normal), x = −τ = k ln 2 + r with k by the 1.5·2²³
+/// rounding trick and a two-constant Cody–Waite ln 2, e^r (|r| ≤ ln2/2) by its Taylor
+/// polynomial to r⁷ (truncation 0.347⁸/8! = 5·10⁻⁹ relative), times 2^k built from its bits.
+/// Within 1.15 ulp of the exact value (measured against f64 over τ ∈ [0, 80], bound 2, in
+/// `exp_neg_f32_matches_f64`).
+#[inline(always)]
+pub fn exp_neg_f32(tau: f32) -> f32 {
+    const MAGIC: f32 = 12_582_912.0; // 1.5·2²³
+    let x = -tau.min(80.0);
+    let t = x * std::f32::consts::LOG2_E + MAGIC;
+    let k = t - MAGIC;
+    let ki = (t.to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
+    let r = (x - k * 0.693_359_4) + k * 2.121_944_4e-4;
+    let p = 1.0
+        + r * (1.0
+            + r * (0.5
+                + r * (1.0 / 6.0
+                    + r * (1.0 / 24.0
+                        + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))));
+    p * f32::from_bits(((ki + 127) as u32) << 23)
 }
 
 /// The series threshold of [`phis`] for precision `T`: 0.05 in f64, 0.5 in f32 (where the
@@ -91,6 +135,17 @@ pub fn series_threshold<T: Real>() -> T {
 pub fn segment<T: Real>(l_in: T, u: T, st: T, s: T, ts: T) -> (T, T) {
     let (e, f1, f2) = phis(st * s, ts);
     (l_in * e + u * s * f1, s * (l_in * f1 + u * s * f2))
+}
+
+/// [`segment`] over one row of rays: `rays` (in and out), their voxels' unshot source `u`
+/// and extinction `st`, and their T, all with one sub-segment length `s`.
+#[inline(always)]
+fn transport_row<T: Real>(rays: &mut [T], u: &[T], st: &[T], g: &mut [T], s: T, ts: T) {
+    for (((l, &u), &st), g) in rays.iter_mut().zip(u).zip(st).zip(g) {
+        let (l_out, int) = segment(*l, u, st, s, ts);
+        *g = *g + int;
+        *l = l_out;
+    }
 }
 
 /// Ray-sum tallies of one direction's sweep (radiance summed over rays; the caller weights
@@ -240,6 +295,7 @@ impl<T: Real> CpuLpm<T> {
         let n = self.grid.n;
         let (na, nb, nc) = (n[a], n[b], n[c]);
         let (sa, sb, sc) = (strides[a], strides[b], strides[c]);
+        debug_assert_eq!(sb, 1, "rows run along memory");
         let scale = self.grid.dl * self.path_factor(i);
         let l0 = if order == 0 { l_bc } else { 0.0 };
         let reentry = match self.config.wrap {
@@ -295,18 +351,23 @@ impl<T: Real> CpuLpm<T> {
                     let base = slab * sa + yc * sc;
                     let (head, tail) = rays.split_at_mut(nb - ob);
                     for (run, v0) in [(head, base + ob * sb), (tail, base)] {
-                        for (j, l) in run.iter_mut().enumerate() {
-                            let v = v0 + j * sb;
-                            let l_in = *l;
-                            let (l_out, int) = segment(l_in, u_src[v], sigma_t[v], len, ts);
-                            g[v] = g[v] + int;
-                            if paper_deposit {
-                                if let Some(p) = paper.as_deref_mut() {
-                                    p[v] = p[v] - l_in * (-(sigma_s[v] * len)).exp_m1();
-                                }
+                        let w = run.len();
+                        if let (true, Some(p)) = (paper_deposit, paper.as_deref_mut()) {
+                            let ss = &sigma_s[v0..v0 + w];
+                            for ((l, p), &ss) in run.iter().zip(&mut p[v0..v0 + w]).zip(ss) {
+                                *p = *p - *l * (-(ss * len)).exp_m1();
                             }
-                            *l = l_out;
                         }
+                        // The lateral stride is 1 in every layout (asserted above), so a row
+                        // is four contiguous slices: no bounds checks, vectorisable.
+                        transport_row(
+                            run,
+                            &u_src[v0..v0 + w],
+                            &sigma_t[v0..v0 + w],
+                            &mut g[v0..v0 + w],
+                            len,
+                            ts,
+                        );
                     }
                 }
             }
@@ -537,22 +598,32 @@ impl<T: Real> CpuLpm<T> {
             .enumerate()
             .map(|(ci, mut sl)| {
                 let (mut dep, mut abs) = (0.0, 0.0);
-                for j in 0..chunk {
-                    let v = ci * chunk + j;
-                    let mut acc = [T::zero(); CONES];
-                    let mut fl = T::zero();
-                    for k in 0..per {
-                        let gk = gbuf[k][v];
-                        fl = fl + wphi[k] * gk;
-                        let src = if paper { pbuf[k][v] } else { gk };
-                        for d in 0..CONES {
-                            acc[d] = acc[d] + wu[k][d] * src;
+                // Direction-outer over the slice, per voxel still summed k = 0, 1, … (the
+                // old voxel-outer order, so bit-identical): each T row is read once as a
+                // contiguous stream and every loop vectorises.
+                let range = ci * chunk..(ci + 1) * chunk;
+                let mut acc: Vec<Vec<T>> = (0..CONES).map(|_| vec![T::zero(); chunk]).collect();
+                let mut fls = vec![T::zero(); chunk];
+                for k in 0..per {
+                    let gk = &gbuf[k][range.clone()];
+                    let src = if paper { &pbuf[k][range.clone()] } else { gk };
+                    let w = wphi[k];
+                    for (f, &g) in fls.iter_mut().zip(gk) {
+                        *f = *f + w * g;
+                    }
+                    for (a, &w) in acc.iter_mut().zip(&wu[k]) {
+                        for (a, &x) in a.iter_mut().zip(src) {
+                            *a = *a + w * x;
                         }
                     }
+                }
+                for j in 0..chunk {
+                    let v = ci * chunk + j;
+                    let fl = fls[j];
                     let ss = self.sigma_s[v];
                     let mut total = T::zero();
                     for d in 0..CONES {
-                        let du = if paper { acc[d] } else { ss * acc[d] };
+                        let du = if paper { acc[d][j] } else { ss * acc[d][j] };
                         sl[d][j] = sl[d][j] + du;
                         if d_i == CONES {
                             sl[CONES + d][j] = sl[CONES + d][j] + du;
@@ -609,5 +680,57 @@ impl StorageI {
             StorageI::One => 1,
             StorageI::Six => CONES,
         }
+    }
+}
+
+#[cfg(test)]
+mod fast_exp_tests {
+    use super::{exp_neg_f32, phis, series_threshold};
+
+    /// Units in the last place of `want` (f32) between `got` and the f64 value `want`.
+    fn ulps(got: f32, want: f64) -> f64 {
+        let w = want as f32;
+        let ulp = (f32::from_bits(w.to_bits() + 1) - w) as f64;
+        (got as f64 - want).abs() / ulp
+    }
+
+    /// The f32 e^{−τ} of the vectorised sweep is within 2 ulp of the exact value on τ ∈
+    /// [0, 80] (dense: 2·10⁵ points, linear and logarithmic), and tiny and finite beyond.
+    #[test]
+    fn exp_neg_f32_matches_f64() {
+        let mut worst: f64 = 0.0;
+        for k in 0..100_000 {
+            let lin = 80.0 * k as f64 / 100_000.0;
+            let log = 10f64.powf(-8.0 + 9.9 * k as f64 / 100_000.0);
+            for tau in [lin, log.min(80.0)] {
+                let t = tau as f32;
+                worst = worst.max(ulps(exp_neg_f32(t), (-(t as f64)).exp()));
+            }
+        }
+        eprintln!("exp_neg_f32: worst {worst:.2} ulp on [0, 80]");
+        assert!(worst <= 2.0, "worst {worst} ulp");
+        for tau in [80.0f32, 100.0, 1e3, 1e30, f32::INFINITY] {
+            let e = exp_neg_f32(tau);
+            assert!(e.is_finite() && (0.0..2e-35).contains(&e), "τ = {tau}: {e}");
+        }
+    }
+
+    /// The branch-free f32 (E, φ1, φ2) agrees with the f64 libm form for τ from 10⁻⁸ to 10³,
+    /// across the series/direct switch at 0.5. Measured: E 6.3·10⁻⁸ absolute, φ1 1.6·10⁻⁷
+    /// and φ2 3.7·10⁻⁷ relative (φ2's direct form cancels just above the switch:
+    /// τ − 1 + E = 0.107 at τ = 0.5); bounds 3·10⁻⁷, 3·10⁻⁷, 10⁻⁶.
+    #[test]
+    fn phis_f32_matches_f64() {
+        let (mut we, mut w1, mut w2) = (0.0f64, 0.0f64, 0.0f64);
+        for k in 0..=200_000 {
+            let t = 10f64.powf(-8.0 + 11.0 * k as f64 / 200_000.0) as f32;
+            let (e, f1, f2) = phis(t, series_threshold::<f32>());
+            let (e6, f16, f26) = phis(t as f64, series_threshold::<f64>());
+            we = we.max((e as f64 - e6).abs());
+            w1 = w1.max((f1 as f64 / f16 - 1.0).abs());
+            w2 = w2.max((f2 as f64 / f26 - 1.0).abs());
+        }
+        eprintln!("phis f32 vs f64: E {we:.2e} abs, φ1 {w1:.2e}, φ2 {w2:.2e} rel");
+        assert!(we < 3e-7 && w1 < 3e-7 && w2 < 1e-6, "{we:e} {w1:e} {w2:e}");
     }
 }

@@ -75,8 +75,32 @@
 //!   m = 5, 2 threads on a shared 2-core EPYC): 14.6 s (42.8 Mseg/s, 7.0·10⁷ sub-segments
 //!   per order and channel = 265 n³) before the x-layout change and 21.1 s after it in a run
 //!   whose triad probe read 16.7/57.0 GB/s against 110/40.8 GB/s for the first: the machine
-//!   was loaded, and both are far from the issue's 1.0 s target (not reached; the inner loop
-//!   is scalar with one expm1 and two divisions per sub-segment).
+//!   was loaded.
+//! * **Vectorised sweep and collect** (issue 16 acceptance 3). `perf record` of the 32³
+//!   bench: 54 % in the sweep's scalar loop (bounds checks on T reloaded after every libm
+//!   call), 30 % in libm `expm1f`, 9 % in the collect. Now (a) a row of rays is four
+//!   contiguous slices (ray, U, σt, T; the lateral stride is 1 in every layout) through
+//!   `transport_row`, (b) [`cpu::phis`] is branch-free (series and direct form both
+//!   evaluated, one selected) and in f32 uses [`cpu::exp_neg_f32`] (Cody–Waite reduction,
+//!   degree-7 polynomial, 2^k from bits: 1.15 ulp measured, bound 2, test `exp_neg_f32_matches_f64`; E, φ1, φ2
+//!   within 6.3·10⁻⁸, 1.6·10⁻⁷, 3.7·10⁻⁷ of f64, `phis_f32_matches_f64`), so the loop
+//!   compiles to packed SSE (126 packed mul/add/div in the sweep), (c) the collect runs
+//!   direction-outer over each z-slice into six SoA accumulators, keeping the per-voxel
+//!   summation order (bit-identical). f64 keeps libm `expm1` (its results are unchanged).
+//!   Measured back to back (one 64³ RGB solve plus the shared setup, `perf stat`
+//!   task-clock, i.e. CPU seconds, as wall time was useless at load 13–20 on 2 cores):
+//!   old 9.09 / 9.86 CPU-s, new 4.39 / 4.48 CPU-s: 2.1× less work. All lpm tests (T1–T8,
+//!   T13, T17, T19–T23) pass unchanged; T23 (1 vs 2 threads bit-identical) included. After
+//!   the change the sweep is 70 % and the collect 14 % of the profile.
+//!   **Roofline** (counted from the code, not measured): a sub-segment is ≈ 70 flops (two
+//!   8-term series, the polynomial exp, one division, the transport) on 16 bytes (U, σt
+//!   read, T read and written) that sit in L2/L3 for one direction's sweep: compute-bound.
+//!   A 64³ RGB solve is 3 orders × 3 channels × 7.0·10⁷ = 6.3·10⁸ sub-segments = 4.4·10¹⁰
+//!   flops; with SSE (4 lanes, the workspace builds for baseline x86-64 and forbids unsafe,
+//!   so no AVX-512 `target_feature` path) at ~2 packed ops per cycle and ~3 GHz that is
+//!   ~0.9 s on two idle cores, i.e. the 1.0 s target is at this build's roofline; AVX-512
+//!   (`-C target-cpu=native`, a workspace decision) would have 4× the lanes. Not measured
+//!   on an idle machine: the target is not demonstrated.
 //! * **D12 wrap.** `Open` (default) re-enters rays through a side face with the boundary
 //!   radiance at order 0 and 0 after; `Zero` is the paper's; `Periodic` carries the ray.
 //! * **D1 stopping.** [`Orders::Converge`] continues while the unshot power
