@@ -250,6 +250,24 @@ impl MethodEntry {
                     "{} {m} [{}] {}",
                     job.scene.name, job.setting.label, job.backend
                 );
+                // A method that cannot render a dataset's effects (POP: no volume source;
+                // methods that take the lights themselves: no point lights) has no point
+                // there; the plan's typed error says why.
+                let config = grid_config(m, job.setting.downsample, job.setting.tolerance);
+                if let Err(e) =
+                    pipeline::plan_channels(&job.scene.channels, &job.scene.selection, &config)
+                {
+                    if matches!(
+                        e,
+                        pipeline::PipelineError::MethodCannot { .. }
+                            | pipeline::PipelineError::Solver(
+                                solvers::SolverError::LightKind { .. }
+                            )
+                    ) {
+                        eprintln!("{label}: skipped: {e}");
+                        return Ok(None);
+                    }
+                }
                 ctx.deterministic(
                     &label,
                     || {

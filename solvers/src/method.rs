@@ -245,8 +245,9 @@ impl<T: Real, E> Solution<T, E> {
 ///     σs·φ/4π (isotropic in-scattering of the uncollided light; the plan warns under
 ///     anisotropy). The environment seen directly (`background`) stays the raymarch's;
 ///   - plus, with emission, the emission's fluence of orders ≥ 0, as for `Baked`.
-///   Point and sphere lights are refused with [`SolverError::LightKind`] naming the light
-///   ([`direct_lights`]).
+///
+/// Point and sphere lights are refused with [`SolverError::LightKind`] naming the light
+/// ([`direct_lights`]).
 ///
 /// The planner records per pass which effects it computes ([`crate::pipeline::Planned`]'s
 /// `computes`); `pipeline::tests::direct_lpm_counts_every_effect_once` checks the contract

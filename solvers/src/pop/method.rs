@@ -23,8 +23,16 @@
 //! Eq 8 ([`super::Eq8::Literal`]) changes only the view-dependent accumulator, which the
 //! pipeline does not read (its raymarch takes φ), so it is not a variant here.
 //! **Parameters:** `cells` (N, cells per axis of every ordinate grid; default 0 = the solve
-//! grid's largest dimension, so an axis ordinate's cells are the solve grid's voxels),
+//! grid's largest dimension up to [`DEFAULT_CELLS_MAX`], so on solve grids up to 32³ an axis
+//! ordinate's cells are the solve grid's voxels),
 //! `ordinates` (per environment light, default 64, the paper's Fig 14), `beta`.
+//!
+//! **Measured in the pipeline** (`pipeline.rs`, `every_registered_method_…`: the 16³ vacuum
+//! cloud, albedo 0.9, g = 0.4, one directional light, downsample 2, f64): POP's mean
+//! multiple-scattering image is 4.04 × FLD-LP's (LPM 1.60, LBM 1.31): the over-bright
+//! isotropised random walk of `mod.rs` (volume-mean φ 3.5 vs the path tracer's 0.89 on the
+//! Fig 12 cube at g = 0.7). The comparison with the path tracer (issue 17 item 6, measure)
+//! is not run yet.
 //!
 //! **Input errors:** g < 0 (`phase.g`, POP Sec 4), zero ordinates, N < 2, a medium with
 //! emission (POP takes no volume source), grids beyond the memory budget
@@ -41,6 +49,11 @@ use crate::{Backend, Grid, Precision, Real, SolverError};
 /// Rows of the latitude–longitude map an environment is rasterised on (D10; a constant
 /// environment's energy and first moment are exact at any resolution).
 const ENV_ROWS: usize = 32;
+
+/// The largest default N (`cells` = 0): iterations to a relative stop grow ∝ N² (mod.rs,
+/// t21: 397 at 16³ to 10⁻³ at g = 0.7), so the cost grows ∝ N⁵; N ≤ 32 keeps the atlas's
+/// full-resolution points to seconds. Set `cells` for finer grids.
+pub const DEFAULT_CELLS_MAX: usize = 32;
 
 /// POP with its settings.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,7 +83,12 @@ impl PopMethod {
     /// The ordinate grid size on `grid`.
     pub fn cells_on(&self, grid: &Grid) -> usize {
         if self.cells == 0 {
-            grid.n.iter().copied().max().unwrap_or(2).max(2)
+            grid.n
+                .iter()
+                .copied()
+                .max()
+                .unwrap_or(2)
+                .clamp(2, DEFAULT_CELLS_MAX)
         } else {
             self.cells
         }
@@ -305,3 +323,126 @@ pub const POP: MethodFamily = MethodFamily {
     ],
     build,
 };
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::scene::{Light, Phase};
+    use crate::{Medium, method};
+
+    fn solve_with(
+        spec: &str,
+        phase: Phase,
+        lights: &[Light],
+        n: usize,
+    ) -> Result<Fluence, SolverError> {
+        let m = method::parse(spec)?;
+        let medium = Medium::homogeneous(Grid::cube(n, 1.0).unwrap(), 4.0, 0.9).unwrap();
+        let p = Problem {
+            medium: &medium,
+            lights,
+            phase,
+        };
+        m.solve(
+            &Backend::Cpu(Precision::F64),
+            &p,
+            &Tolerance::rel(1e-3),
+            &mut |_, _| {},
+        )
+    }
+
+    /// Bad input gives typed errors naming the parameter (issue 17, acceptance 5).
+    #[test]
+    fn bad_input_is_a_typed_error() {
+        let sun = [Light::directional([0.0, 0.0, -1.0], 1.0).unwrap()];
+        let hg = |g| Phase::HenyeyGreenstein { g };
+        assert!(matches!(
+            method::parse_with("pop", &Params::none().with("ordinates", 0.0)),
+            Err(SolverError::BadParameter {
+                name: "ordinates",
+                ..
+            })
+        ));
+        assert!(matches!(
+            method::parse_with("pop", &Params::none().with("cells", 1.0)),
+            Err(SolverError::BadParameter { name: "cells", .. })
+        ));
+        assert!(matches!(
+            solve_with("pop", hg(-0.3), &sun, 8),
+            Err(SolverError::BadParameter {
+                name: "phase.g",
+                ..
+            })
+        ));
+        assert!(matches!(
+            solve_with("pop", hg(0.5), &[], 8),
+            Err(SolverError::BadParameter {
+                name: "ordinates",
+                ..
+            })
+        ));
+        let point = [Light::Point {
+            position: [0.5, 0.5, 2.0],
+            power: 1.0,
+        }];
+        assert!(matches!(
+            solve_with("pop", hg(0.5), &point, 8),
+            Err(SolverError::LightKind {
+                index: 0,
+                kind: "point",
+                ..
+            })
+        ));
+        let big = method::parse_with("pop", &Params::none().with("cells", 4096.0)).unwrap();
+        let medium = Medium::homogeneous(Grid::cube(8, 1.0).unwrap(), 4.0, 0.9).unwrap();
+        let p = Problem {
+            medium: &medium,
+            lights: &sun,
+            phase: hg(0.5),
+        };
+        assert!(matches!(
+            big.solve(
+                &Backend::Cpu(Precision::F32),
+                &p,
+                &Tolerance::rel(1e-3),
+                &mut |_, _| {}
+            ),
+            Err(SolverError::TooLarge(_))
+        ));
+        assert!(method::parse("pop:literal").is_err());
+        for spec in ["pop", "pop:per-cell", "pop:heuristic"] {
+            assert_eq!(method::parse(spec).unwrap().name(), spec);
+        }
+    }
+
+    /// In a pure absorber POP's beam is exact (D1), so the scattered light it returns for a
+    /// directional light is 0 to rounding; with scattering it is positive. The paper's
+    /// per-cell init counts the beam (j+1) times (T6), which the returned φ shows.
+    #[test]
+    fn a_directional_lights_uncollided_beam_is_removed() {
+        let sun = [Light::directional([0.0, 0.0, -1.0], 2.0).unwrap()];
+        let grid = Grid::cube(8, 1.0).unwrap();
+        let absorber = Medium::homogeneous(grid, 3.0, 0.0).unwrap();
+        for (spec, zero) in [("pop", true), ("pop:per-cell", false)] {
+            let m = method::parse(spec).unwrap();
+            let p = Problem {
+                medium: &absorber,
+                lights: &sun,
+                phase: Phase::Isotropic,
+            };
+            let s = m
+                .solve(
+                    &Backend::Cpu(Precision::F64),
+                    &p,
+                    &Tolerance::rel(1e-9),
+                    &mut |_, _| {},
+                )
+                .unwrap();
+            let max = s.phi.iter().cloned().fold(0.0, f64::max);
+            assert_eq!(max < 1e-9, zero, "{spec}: max φ_s = {max:e}");
+        }
+        let s = solve_with("pop", Phase::HenyeyGreenstein { g: 0.9 }, &sun, 8).unwrap();
+        assert!(s.phi.iter().sum::<f64>() > 0.0);
+    }
+}
