@@ -23,7 +23,8 @@
 //! (`scene,method,setting,backend,seconds,error,error_stderr` and more; `paths_per_second`
 //! for the path-tracer points, wall-clock like `seconds`), a log–log Pareto
 //! plot per scene (`pareto_<scene>.png`), `fastest.csv` (per scene and error target 5 %,
-//! 2 %, 1 %: the fastest point whose debiased error reaches it), `references.csv` (with the
+//! 2 %, 1 %: the fastest point whose debiased error reaches it), `skipped.csv` (the method
+//! settings whose plan refuses a scene, with the typed reason), `references.csv` (with the
 //! reference's `paths_per_second`) and
 //! `meta.json`.
 
@@ -250,24 +251,6 @@ impl MethodEntry {
                     "{} {m} [{}] {}",
                     job.scene.name, job.setting.label, job.backend
                 );
-                // A method that cannot render a dataset's effects (POP: no volume source;
-                // methods that take the lights themselves: no point lights) has no point
-                // there; the plan's typed error says why.
-                let config = grid_config(m, job.setting.downsample, job.setting.tolerance);
-                if let Err(e) =
-                    pipeline::plan_channels(&job.scene.channels, &job.scene.selection, &config)
-                {
-                    if matches!(
-                        e,
-                        pipeline::PipelineError::MethodCannot { .. }
-                            | pipeline::PipelineError::Solver(
-                                solvers::SolverError::LightKind { .. }
-                            )
-                    ) {
-                        eprintln!("{label}: skipped: {e}");
-                        return Ok(None);
-                    }
-                }
                 ctx.deterministic(
                     &label,
                     || {
@@ -279,6 +262,38 @@ impl MethodEntry {
             }
         }
     }
+}
+
+/// Why `entry` cannot render `scene` at `setting`, if its plan refuses it: a method that cannot
+/// render a dataset's effects (POP: no volume source; methods that take the lights themselves:
+/// no point lights) gets no point there, and `skipped.csv` keeps the plan's typed error.
+fn refusal(entry: &MethodEntry, scene: &Prepared, setting: &Setting) -> Option<String> {
+    let Renderer::Pipeline(m) = &entry.renderer else {
+        return None;
+    };
+    let config = grid_config(m, setting.downsample, setting.tolerance);
+    match pipeline::plan_channels(&scene.channels, &scene.selection, &config) {
+        Err(
+            e @ (pipeline::PipelineError::MethodCannot { .. }
+            | pipeline::PipelineError::Solver(solvers::SolverError::LightKind { .. })),
+        ) => Some(e.to_string()),
+        _ => None,
+    }
+}
+
+/// A method setting the atlas left out on a scene, and why (`skipped.csv`).
+#[derive(Debug, Clone, Serialize)]
+pub struct Skipped {
+    /// Scene (file stem).
+    pub scene: String,
+    /// Method name from the registry.
+    pub method: String,
+    /// The setting.
+    pub setting: String,
+    /// The backend.
+    pub backend: String,
+    /// The plan's typed refusal.
+    pub reason: String,
 }
 
 /// Every method of the atlas: the path tracer and each family of
@@ -790,6 +805,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
 
     let mut points = Vec::new();
     let mut refs = Vec::new();
+    let mut skipped = Vec::new();
     for scene in &mut prepared {
         out.unit();
         if !render_reference(out, scene, ref_spp, args.seed)? && !out.sharding() {
@@ -812,6 +828,21 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         let bar = progress(jobs.len() as u64, &args.common, &scene.name);
         for (m, s, b) in &jobs {
             if !out.unit() {
+                bar.inc(1);
+                continue;
+            }
+            if let Some(reason) = refusal(m, scene, s) {
+                eprintln!(
+                    "{} {} [{}] {b}: skipped: {reason}",
+                    scene.name, m.name, s.label
+                );
+                skipped.push(Skipped {
+                    scene: scene.name.clone(),
+                    method: m.name.clone(),
+                    setting: s.label.clone(),
+                    backend: b.to_string(),
+                    reason,
+                });
                 bar.inc(1);
                 continue;
             }
@@ -870,6 +901,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     }
     out.csv("points.csv", &points)?;
     out.csv("references.csv", &refs)?;
+    out.csv("skipped.csv", &skipped)?;
     out.csv("fastest.csv", &fastest(&points))?;
     Ok(points)
 }

@@ -72,10 +72,25 @@ fn accuracy_cost_quick_atlas() {
     for s in ["nebula", "emissive_cloud", "shell_core", "plume"] {
         assert!(dir.join(format!("pareto_{s}.png")).exists());
         let mine: Vec<_> = points.rows().filter(|p| p.get("scene") == s).collect();
+        // Every method has a point, or its plan refused the scene with a typed reason (POP
+        // takes no volume source; methods that take the lights refuse point lights).
+        let skipped = Table::read(&dir.join("skipped.csv")).unwrap();
         for m in experiments::accuracy_cost::methods() {
+            let has = mine.iter().any(|p| p.get("method") == m.name);
+            let why: Vec<_> = skipped
+                .rows()
+                .filter(|r| r.get("scene") == s && r.get("method") == m.name)
+                .map(|r| r.get("reason").to_string())
+                .collect();
             assert!(
-                mine.iter().any(|p| p.get("method") == m.name),
-                "{s}: no point of {}",
+                has != !why.is_empty(),
+                "{s}: {}: points {has}, skipped {why:?}",
+                m.name
+            );
+            assert!(
+                why.iter()
+                    .all(|r| r.contains("emission") || r.contains("light")),
+                "{s}: {}: {why:?}",
                 m.name
             );
         }

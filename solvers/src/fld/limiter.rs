@@ -17,7 +17,7 @@
 //!   evaluated **branch-free and without libm calls**: both sides of a switch are computed
 //!   on clamped arguments and one is picked by a select, so the CPU sweep's inner loop
 //!   vectorises (SSE2, the default target). LP: a Padé form of its continued fraction for
-//!   R ≤ 2 and the closed form with an inline polynomial exp ([`exp_bounded`]) above.
+//!   R ≤ 2 and the closed form with an inline polynomial exp (`exp_bounded`) above.
 //!   Pinned by `dense_accuracy_*` below over R ∈ {0} ∪ [10⁻⁸, 10⁸] ∪ {huge} (20001
 //!   log-spaced points) against f64 references (libm `hypot`/`powf`, LP series / closed
 //!   form): every limiter ≤ 4 ulp in f32 and ≤ 10⁻¹² relative in f64 (both pass). The LP
@@ -129,7 +129,7 @@ const LP_PADE_Q: [f64; 6] = [
     7.122096232339872e-07,
     7.399580501132335e-10,
 ];
-/// 1/i!, the Taylor coefficients of e^r used by [`exp_bounded`].
+/// 1/i!, the Taylor coefficients of e^r used by `exp_bounded`.
 const INV_FACTORIAL: [f64; 12] = [
     1.0,
     1.0,
@@ -185,7 +185,7 @@ pub(crate) fn exp_bounded<T: Real>(y: T) -> T {
 ///   F = 1/(3 + R²/(5 + R²/(7 + …))) ([`LP_PADE_P`]); F(0) = 1/3 correctly rounded.
 /// * R > 2: with u = 1/R and e = e^(−2R), coth R = (1 + e)/(1 − e) gives
 ///   F = u·((1 − u) + e(1 + u))/(1 − e); 1 − u ∈ [1/2, 1) costs at most half an ulp, and
-///   e ≤ 0.018 enters with weight ≤ 0.05, so the cheap [`exp_bounded`] is accurate enough. R·F → 1 as
+///   e ≤ 0.018 enters with weight ≤ 0.05, so the cheap `exp_bounded` is accurate enough. R·F → 1 as
 ///   R → ∞ with no overflow (u → 0, no R² is formed).
 ///
 /// **Decision (issue 15 item 3)**: both forms are computed for every R on clamped arguments
