@@ -12,21 +12,11 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use solvers::method::{self, Params, Problem, Tolerance};
-use solvers::pipeline::{bake, restrict};
-use solvers::{Backend, Medium, Precision};
+use solvers::{Backend, Precision};
 
-fn lit_cube(tau: f64) -> (Medium<f64>, solvers::scene::Scene) {
-    let scene = solvers::scenes::lit_albedo1_cube(16, tau).unwrap();
-    let baked = vec![bake::bake(&scene.medium, 0, &scene.lights[0]).unwrap()];
-    let q = bake::q_ri(&scene.medium, &baked);
-    let m = restrict::restrict(&scene.medium, &q, 1, 1).unwrap();
-    (m, scene)
-}
-
-fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
-    let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
-    (d / b.iter().map(|y| y * y).sum::<f64>()).sqrt()
-}
+#[path = "support/lit_cube.rs"]
+mod lit_cube;
+use lit_cube::{lit_cube, rel_l2};
 
 #[test]
 fn the_rde_default_stop_is_within_one_percent_of_a_tight_solve_and_the_residual_stop_is_not() {
