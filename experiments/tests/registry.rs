@@ -83,7 +83,7 @@ fn accuracy_cost_quick_atlas() {
                 .map(|r| r.get("reason").to_string())
                 .collect();
             assert!(
-                has != !why.is_empty(),
+                has == why.is_empty(),
                 "{s}: {}: points {has}, skipped {why:?}",
                 m.name
             );
