@@ -24,7 +24,7 @@ use solvers::{Backend, Precision};
 
 #[path = "support/lit_cube.rs"]
 mod lit_cube;
-use lit_cube::{lit_cube, rel_l2};
+use lit_cube::{lit_cube, rel_l2, tight_solve};
 
 #[test]
 fn the_default_stop_is_within_one_percent_of_a_tight_solve_on_albedo_1_cubes() {
@@ -48,17 +48,7 @@ fn the_default_stop_is_within_one_percent_of_a_tight_solve_on_albedo_1_cubes() {
             "fld:lp:mg",
         ] {
             let mth = method::parse(spec).unwrap();
-            let tight = mth
-                .solve(
-                    &Backend::Cpu(Precision::F64),
-                    &p,
-                    &Tolerance {
-                        rel: 1e-10,
-                        max_steps: 100_000,
-                    },
-                    &mut |_, _| {},
-                )
-                .unwrap();
+            let tight = tight_solve(mth.as_ref(), &p);
             assert!(tight.converged(), "{spec} τ {tau}: the tight solve");
             for prec in [Precision::F64, Precision::F32] {
                 let s = mth

@@ -16,7 +16,7 @@ use solvers::{Backend, Precision};
 
 #[path = "support/lit_cube.rs"]
 mod lit_cube;
-use lit_cube::{lit_cube, rel_l2};
+use lit_cube::{lit_cube, rel_l2, tight_solve};
 
 #[test]
 fn the_rde_default_stop_is_within_one_percent_of_a_tight_solve_and_the_residual_stop_is_not() {
@@ -30,18 +30,7 @@ fn the_rde_default_stop_is_within_one_percent_of_a_tight_solve_and_the_residual_
             lights: &scene.lights,
             phase: scene.phase,
         };
-        let tight = method::parse("cda")
-            .unwrap()
-            .solve(
-                &Backend::Cpu(Precision::F64),
-                &p,
-                &Tolerance {
-                    rel: 1e-10,
-                    max_steps: 100_000,
-                },
-                &mut |_, _| {},
-            )
-            .unwrap();
+        let tight = tight_solve(method::parse("cda").unwrap().as_ref(), &p);
         assert!(tight.converged(), "σt·Δl {tau}: the tight solve");
         let rde = method::parse("rde").unwrap();
         let old = method::parse_with("rde", &Params::none().with("stop", 0.0)).unwrap();
@@ -92,18 +81,7 @@ fn the_rde_error_bound_stop_takes_the_same_blocks_on_the_gpu() {
         lights: &scene.lights,
         phase: scene.phase,
     };
-    let tight = method::parse("cda")
-        .unwrap()
-        .solve(
-            &Backend::Cpu(Precision::F64),
-            &p,
-            &Tolerance {
-                rel: 1e-10,
-                max_steps: 100_000,
-            },
-            &mut |_, _| {},
-        )
-        .unwrap();
+    let tight = tight_solve(method::parse("cda").unwrap().as_ref(), &p);
     let rde = method::parse("rde").unwrap();
     let g = rde
         .solve(
