@@ -223,6 +223,17 @@ impl<T: Real, E> Solution<T, E> {
     }
 }
 
+/// The CPU precision a CPU-only method (LPM, POP) runs `backend` in, or a typed
+/// [`SolverError::Unsupported`] naming `name` on the GPU.
+pub fn cpu_precision(name: &str, backend: &Backend<'_>) -> Result<Precision, SolverError> {
+    match backend {
+        Backend::Cpu(p) => Ok(*p),
+        Backend::Gpu(_) => Err(SolverError::Unsupported(format!(
+            "{name}: the GPU kernel is not implemented yet (CPU only)"
+        ))),
+    }
+}
+
 /// How a method receives the scene's lights, and what its φ then holds.
 ///
 /// ## The contract of φ

@@ -234,13 +234,9 @@ impl Method for PopMethod {
         observer: &mut dyn FnMut(usize, f64),
     ) -> Result<Fluence, SolverError> {
         tolerance.validate()?;
-        match backend {
-            Backend::Cpu(Precision::F64) => self.run::<f64>(problem, tolerance, observer),
-            Backend::Cpu(Precision::F32) => self.run::<f32>(problem, tolerance, observer),
-            Backend::Gpu(_) => Err(SolverError::Unsupported(format!(
-                "{}: the GPU kernel is not implemented yet (CPU only)",
-                self.name()
-            ))),
+        match crate::method::cpu_precision(&self.name(), backend)? {
+            Precision::F64 => self.run::<f64>(problem, tolerance, observer),
+            Precision::F32 => self.run::<f32>(problem, tolerance, observer),
         }
     }
 
