@@ -10,10 +10,10 @@ use crate::method::Stop;
 use rayon::prelude::*;
 
 /// Slots per cell and channel of the state: L, a.
-const S: usize = 2;
+pub(super) const S: usize = 2;
 /// Slots per cell and channel of the links: T along +t₁, +t₂, +d, γ along the same, and the
 /// ghost transmittance e^{−σa Δx/2} to a vacuum cell beyond an open face.
-const K: usize = 7;
+pub(super) const K: usize = 7;
 /// Slots per cell and channel of the accumulators: φ = Σ L^m, J = Σ L^m a^m, L_acc (Eq 8).
 pub const ACC: usize = 3;
 
@@ -50,6 +50,26 @@ impl Ledger {
     pub fn exited(&self) -> f64 {
         self.exit_back + self.exit_front + self.exit_side
     }
+}
+
+/// A view of a [`CpuPop`] for the GPU upload (see [`CpuPop::parts`]).
+pub(super) struct Parts<'a, T> {
+    /// `[cell][channel][L, a]`.
+    pub state: &'a [T],
+    /// `[cell][channel][K]`.
+    pub links: &'a [T],
+    /// `[cell][channel][φ, J, L_acc]`.
+    pub acc: &'a [T],
+    /// Per cell u of Eq 8, when an observer is set.
+    pub view_u: Option<&'a [T]>,
+    /// Per channel: the factor Eq 8 multiplies a by.
+    pub lobe: Vec<f64>,
+    /// The lateral faces.
+    pub lateral: Lateral,
+    /// Per channel, the power so far.
+    pub ledger: &'a [Ledger],
+    /// Steps run so far.
+    pub steps: usize,
 }
 
 /// The propagation state of one ordinate on one [`PropagationGrid`].
@@ -293,6 +313,22 @@ impl<T: Real> CpuPop<T> {
         if let Some(u) = &self.view_u {
             let lobe = av * T::c(self.lobe_factor(ch));
             self.acc[acc + 2] = self.acc[acc + 2] + lv * hg_view(u[cell], lobe);
+        }
+    }
+
+    /// What the GPU kernel uploads (`pop/gpu.rs`): the state, the links, the accumulators,
+    /// the per-cell u of Eq 8, the Eq 8 lobe factor per channel, the lateral faces and the
+    /// ledger so far.
+    pub(super) fn parts(&self) -> Parts<'_, T> {
+        Parts {
+            state: &self.state,
+            links: &self.links,
+            acc: &self.acc,
+            view_u: self.view_u.as_deref(),
+            lobe: (0..self.nc).map(|ch| self.lobe_factor(ch)).collect(),
+            lateral: self.lateral,
+            ledger: &self.ledger,
+            steps: self.steps,
         }
     }
 

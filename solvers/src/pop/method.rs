@@ -99,6 +99,11 @@ impl PopMethod {
         problem: &Problem<'_>,
         tolerance: &Tolerance,
         observer: &mut dyn FnMut(usize, f64),
+        solve: impl FnOnce(
+            &PopMedium,
+            &[super::Ordinate],
+            &PopConfig,
+        ) -> Result<super::PopSolution<T>, SolverError>,
     ) -> Result<Fluence, SolverError> {
         let setup = std::time::Instant::now();
         let medium = problem.medium;
@@ -143,17 +148,29 @@ impl PopMethod {
         config.init = self.init;
         let setup_seconds = setup.elapsed().as_secs_f64();
         let t0 = std::time::Instant::now();
-        let sol = super::solve::<T>(&pm, &ordinates, &config)?;
+        let sol = solve(&pm, &ordinates, &config)?;
         let seconds = t0.elapsed().as_secs_f64();
         let steps = sol.runs.iter().map(|r| r.steps).max().unwrap_or(0);
-        // The largest R^m/P_inj over the ordinates after each iteration, for the observer.
-        for m in 0..steps {
+        // The largest R^m/P_inj over the ordinates after each iteration where one was
+        // recorded (every step on the CPU, every checkpoint on the GPU), for the observer;
+        // an ordinate that has stopped counts with its last value.
+        let mut at: Vec<usize> = sol
+            .runs
+            .iter()
+            .flat_map(|r| r.history_steps.iter().copied())
+            .collect();
+        at.sort_unstable();
+        at.dedup();
+        for m in at {
             let worst = sol
                 .runs
                 .iter()
-                .filter_map(|r| r.history.get(m).or(r.history.last()))
+                .filter_map(|r| {
+                    let i = r.history_steps.partition_point(|&s| s <= m);
+                    i.checked_sub(1).and_then(|i| r.history.get(i))
+                })
                 .fold(0.0, |a: f64, &b| a.max(b));
-            observer(m + 1, worst);
+            observer(m, worst);
         }
         let last_change = sol
             .runs
@@ -217,7 +234,7 @@ impl Method for PopMethod {
 
     fn capabilities(&self) -> Capabilities {
         Capabilities {
-            gpu: false,
+            gpu: true,
             f64: true,
             volume_source: false,
             anisotropic: true,
@@ -234,10 +251,21 @@ impl Method for PopMethod {
         observer: &mut dyn FnMut(usize, f64),
     ) -> Result<Fluence, SolverError> {
         tolerance.validate()?;
-        match crate::method::cpu_precision(&self.name(), backend)? {
-            Precision::F64 => self.run::<f64>(problem, tolerance, observer),
-            Precision::F32 => self.run::<f32>(problem, tolerance, observer),
+        match backend {
+            Backend::Cpu(Precision::F64) => {
+                self.run::<f64>(problem, tolerance, observer, super::solve::<f64>)
+            }
+            Backend::Cpu(Precision::F32) => {
+                self.run::<f32>(problem, tolerance, observer, super::solve::<f32>)
+            }
+            Backend::Gpu(ctx) => self.run::<f32>(problem, tolerance, observer, |m, o, c| {
+                super::gpu::solve(ctx, m, o, c)
+            }),
         }
+    }
+
+    fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {
+        &[&super::gpu::SPEC]
     }
 
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {

@@ -130,6 +130,7 @@
 
 pub mod cpu;
 pub mod env;
+pub mod gpu;
 pub mod grid;
 pub mod kernel;
 pub mod method;
@@ -138,6 +139,7 @@ mod tests;
 
 pub use cpu::{CpuPop, Ledger};
 pub use env::{Prefilter, environment_ordinates, fibonacci};
+pub use gpu::GpuPop;
 pub use grid::{PropagationGrid, frame};
 pub use kernel::{Fractions, cumulative, decay, fractions, hg};
 pub use method::{POP, PopMethod};
@@ -479,8 +481,12 @@ pub struct OrdinateRun<T> {
     pub acc: Vec<T>,
     /// Where the power went, per channel.
     pub ledger: Vec<Ledger>,
-    /// R^m/P_inj (max over channels) after each step.
+    /// R^m/P_inj (max over channels) after the steps in `history_steps`: every step on
+    /// the CPU, every checkpoint on the GPU ([`gpu`]).
     pub history: Vec<f64>,
+    /// The step after which each `history` entry was taken (CPU: 1, 2, …; GPU: K, 2K, …
+    /// and the last step).
+    pub history_steps: Vec<usize>,
     /// Steps run.
     pub steps: usize,
     /// Why it stopped.
@@ -524,12 +530,27 @@ impl<T: Real> PopSolution<T> {
 }
 
 /// Propagates every ordinate through `medium` (rayon over ordinates and over the slices of
-/// each grid; the result does not depend on the thread count).
+/// each grid; the result does not depend on the thread count). The GPU twin is
+/// [`gpu::solve`]; [`method::PopMethod`] dispatches on the backend.
 pub fn solve<T: Real>(
     medium: &PopMedium,
     ordinates: &[Ordinate],
     config: &PopConfig,
 ) -> Result<PopSolution<T>, SolverError> {
+    validate_solve::<T>(medium, ordinates, config)?;
+    let runs = ordinates
+        .par_iter()
+        .map(|o| run_ordinate::<T>(medium, o, config))
+        .collect();
+    Ok(PopSolution { runs })
+}
+
+/// The input checks of a solve (CPU and GPU alike).
+pub(crate) fn validate_solve<T: Real>(
+    medium: &PopMedium,
+    ordinates: &[Ordinate],
+    config: &PopConfig,
+) -> Result<(), SolverError> {
     medium.validate()?;
     if ordinates.is_empty() {
         return Err(SolverError::BadParameter {
@@ -541,12 +562,21 @@ pub fn solve<T: Real>(
     for o in ordinates {
         o.validate()?;
     }
-    config.validate::<T>(ordinates.len(), medium.channels())?;
-    let runs = ordinates
-        .par_iter()
-        .map(|o| run_ordinate::<T>(medium, o, config))
-        .collect();
-    Ok(PopSolution { runs })
+    config.validate::<T>(ordinates.len(), medium.channels())
+}
+
+/// One ordinate's grid (D2–D3) and its state with the medium at the MIP level of D4,
+/// injected (D1), not yet stepped.
+pub(crate) fn prepare<T: Real>(
+    medium: &PopMedium,
+    ordinate: &Ordinate,
+    config: &PopConfig,
+) -> (PropagationGrid, CpuPop<T>) {
+    let grid = PropagationGrid::over(&medium.grid, ordinate.direction, config.n);
+    let mip = grid::box_filter(medium, grid::mip_level(&medium.grid, grid.dx));
+    let mut pop = CpuPop::<T>::new(grid, &mip, &medium.g, config);
+    pop.inject(ordinate, config.init);
+    (grid, pop)
 }
 
 /// One ordinate: its grid (D2–D3), the medium at the MIP level of D4, init, iterations.
@@ -555,10 +585,7 @@ pub fn run_ordinate<T: Real>(
     ordinate: &Ordinate,
     config: &PopConfig,
 ) -> OrdinateRun<T> {
-    let grid = PropagationGrid::over(&medium.grid, ordinate.direction, config.n);
-    let mip = grid::box_filter(medium, grid::mip_level(&medium.grid, grid.dx));
-    let mut pop = CpuPop::<T>::new(grid, &mip, &medium.g, config);
-    pop.inject(ordinate, config.init);
+    let (grid, mut pop) = prepare::<T>(medium, ordinate, config);
     let stop = pop.run(config.tolerance, config.max_iterations);
     OrdinateRun {
         ordinate: *ordinate,
@@ -566,6 +593,7 @@ pub fn run_ordinate<T: Real>(
         channels: medium.channels(),
         ledger: pop.ledger().to_vec(),
         history: pop.history().to_vec(),
+        history_steps: (1..=pop.history().len()).collect(),
         steps: pop.steps(),
         stop,
         acc: pop.accumulators().to_vec(),

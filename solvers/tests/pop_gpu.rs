@@ -1,0 +1,400 @@
+//! POP's GPU kernel (`solvers/src/pop/gpu.rs`) against its CPU twin: spec tests T17 (CPU-f32
+//! vs GPU), T10 (superposition, channel independence), T3 (energy balance), T4 (sanity) on
+//! the GPU, bitwise-repeatable runs, and typed errors. Grids ≤ 16³ (lavapipe in CI).
+//! Without an adapter each test prints one "skipped" line, unless SCATTERBENCH_REQUIRE_GPU=1.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::needless_range_loop)]
+
+mod common;
+
+use solvers::gpu::GpuContext;
+use solvers::noise::SplitMix64;
+use solvers::pop::grid::{box_filter, mip_level, normalise};
+use solvers::pop::{
+    self, CpuPop, GpuPop, Init, Lateral, Observer, Ordinate, PopConfig, PopMedium, PropagationGrid,
+};
+use solvers::{Backend, Grid, Medium, SolverError, Stop};
+
+/// Runs `body` with the shared GPU context (skipped with one line without an adapter).
+fn on_gpu(test: &str, body: impl FnOnce(&GpuContext)) {
+    common::on_backend("gpu", test, |b| match b {
+        Backend::Gpu(ctx) => body(ctx),
+        Backend::Cpu(_) => unreachable!("on_backend(\"gpu\") gives the GPU"),
+    });
+}
+
+/// An injected CPU-f32 state of ordinate `o` on `m` (as `pop::solve` builds it).
+fn prepared(m: &PopMedium, o: &Ordinate, cfg: &PopConfig) -> CpuPop<f32> {
+    let grid = PropagationGrid::over(&m.grid, o.direction, cfg.n);
+    let mip = box_filter(m, mip_level(&m.grid, grid.dx));
+    let mut p = CpuPop::<f32>::new(grid, &mip, &m.g, cfg);
+    p.inject(o, cfg.init);
+    p
+}
+
+/// Vacuum in a third of the voxels, σt over 10⁴ contrast, albedo 0–1 (as `pop/tests.rs`),
+/// with `g.len()` channels drawn independently.
+fn random_medium(seed: u64, n: usize, g: &[f64]) -> PopMedium {
+    let mut rng = SplitMix64::new(seed);
+    let grid = Grid::cube(n, 1.0).unwrap();
+    let mut sigma_s = vec![Vec::new(); g.len()];
+    let mut sigma_a = vec![Vec::new(); g.len()];
+    for _ in 0..grid.len() {
+        let vac = rng.next_f64() < 0.33;
+        for ch in 0..g.len() {
+            let st = if vac {
+                0.0
+            } else {
+                0.1 * 1e4f64.powf(rng.next_f64())
+            };
+            let al = rng.next_f64();
+            sigma_s[ch].push(st * al);
+            sigma_a[ch].push(st * (1.0 - al));
+        }
+    }
+    let m = PopMedium {
+        grid,
+        sigma_s,
+        sigma_a,
+        g: g.to_vec(),
+    };
+    m.validate().unwrap();
+    m
+}
+
+/// max |x − y|/|y| over the entries with |y| > 10⁻⁶·max|y| of slot `slot` of `stride`.
+fn rel_where_large(x: &[f32], y: &[f32], stride: usize, slot: usize) -> f64 {
+    let max = y
+        .iter()
+        .skip(slot)
+        .step_by(stride)
+        .fold(0f64, |a, &v| a.max(f64::from(v).abs()));
+    x.iter()
+        .skip(slot)
+        .step_by(stride)
+        .zip(y.iter().skip(slot).step_by(stride))
+        .filter(|(_, c)| f64::from(**c).abs() > 1e-6 * max)
+        .map(|(g, c)| (f64::from(*g) - f64::from(*c)).abs() / f64::from(*c).abs())
+        .fold(0.0, f64::max)
+}
+
+/// T17 at fixed M: a random two-channel medium (g = 0.7 and 0.95), a skew ordinate, a point
+/// observer (L_acc of Eq 8), open and periodic lateral faces, M = 64, 12³. φ, J and L_acc
+/// within 10⁻³ relative where > 10⁻⁶ max; a within 10⁻⁴ absolute where L > 10⁻⁶ max L;
+/// the exit fractions (exits / injected) within 10⁻⁴.
+#[test]
+fn t17_gpu_matches_cpu_f32_at_fixed_m() {
+    on_gpu("t17_gpu_matches_cpu_f32_at_fixed_m", |ctx| {
+        let m = random_medium(21, 12, &[0.7, 0.95]);
+        let d = normalise("d", [0.8, -0.35, 0.45]).unwrap();
+        let o = Ordinate::directional(d, 1.5).unwrap();
+        for lateral in [Lateral::Open, Lateral::Periodic] {
+            let mut cfg = PopConfig::fixed::<f32>(12, 64);
+            cfg.lateral = lateral;
+            cfg.observer = Some(Observer::Point([2.0, 0.3, 0.6]));
+            let mut cpu = prepared(&m, &o, &cfg);
+            let mut gpu = GpuPop::new(ctx, 12, 2, lateral, true).unwrap();
+            gpu.load(&cpu).unwrap();
+            assert_eq!(cpu.run(0.0, 64), Stop::Cap);
+            assert_eq!(gpu.run(0.0, 64).unwrap(), Stop::Cap);
+            assert_eq!(gpu.steps(), cpu.steps());
+            // One read-back of the ledger in the fixed-M mode.
+            assert_eq!(gpu.history().len(), 1);
+            let (ga, ca) = (gpu.accumulators().unwrap(), cpu.accumulators().to_vec());
+            let names = ["φ", "J", "L_acc"];
+            for slot in 0..3 {
+                let r = rel_where_large(&ga, &ca, 3, slot);
+                eprintln!(
+                    "T17 {lateral:?}: {} max relative GPU − CPU-f32 {r:.3e}",
+                    names[slot]
+                );
+                assert!(r <= 1e-3, "{lateral:?} {}: {r:e}", names[slot]);
+            }
+            let gs = gpu.state().unwrap();
+            let nc = 2;
+            let lmax = (0..cpu.grid().len())
+                .flat_map(|c| (0..nc).map(move |ch| (c, ch)))
+                .fold(0f32, |a, (c, ch)| a.max(cpu.cell(c, ch).0));
+            let mut worst_a = 0f64;
+            let mut worst_l = 0f64;
+            for c in 0..cpu.grid().len() {
+                for ch in 0..nc {
+                    let (l, a) = cpu.cell(c, ch);
+                    let (gl, ga) = (gs[(c * nc + ch) * 2], gs[(c * nc + ch) * 2 + 1]);
+                    if l > 1e-6 * lmax {
+                        worst_a = worst_a.max(f64::from((ga - a).abs()));
+                        worst_l = worst_l.max(f64::from((gl - l).abs() / l));
+                    }
+                }
+            }
+            eprintln!("T17 {lateral:?}: max |Δa| {worst_a:.3e}, max relative ΔL {worst_l:.3e}");
+            assert!(worst_a <= 1e-4, "{lateral:?}: |Δa| {worst_a:e}");
+            assert!(worst_l <= 1e-3, "{lateral:?}: ΔL {worst_l:e}");
+            for ch in 0..nc {
+                let (g, c) = (gpu.ledger()[ch], cpu.ledger()[ch]);
+                let f = |l: &pop::Ledger| {
+                    [
+                        l.exit_back,
+                        l.exit_front,
+                        l.exit_side,
+                        l.absorbed,
+                        l.in_flight,
+                    ]
+                    .map(|v| v / l.injected)
+                };
+                let (fg, fc) = (f(&g), f(&c));
+                let worst = fg
+                    .iter()
+                    .zip(&fc)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+                eprintln!(
+                    "T17 {lateral:?} ch {ch}: exits R/T/side GPU {:.6}/{:.6}/{:.6} CPU \
+                     {:.6}/{:.6}/{:.6}, max |Δ fraction| {worst:.3e}",
+                    fg[0], fg[1], fg[2], fc[0], fc[1], fc[2]
+                );
+                assert!(worst <= 1e-4, "{lateral:?} ch {ch}: {worst:e}");
+            }
+        }
+    });
+}
+
+/// T17 with the ε_L stop: the Fig 12 cube (σs = 4, albedo 1, 16³, d = +x) at g = 0.7 and
+/// ε_L = 10⁻³ (≈ 400 iterations on the CPU). The GPU reads the ledger every K = 8 steps, so
+/// it stops at the first checkpoint at or after the CPU's step: its count is a multiple of K
+/// (or the cap), at least the CPU's less one checkpoint interval of f32 rounding, and within
+/// 2 % of it.
+#[test]
+fn t17_relative_stop_counts_agree_within_a_checkpoint() {
+    on_gpu(
+        "t17_relative_stop_counts_agree_within_a_checkpoint",
+        |ctx| {
+            let m = PopMedium::homogeneous(Grid::cube(16, 1.0).unwrap(), 4.0, 0.0, 0.7).unwrap();
+            let o = Ordinate::directional([1.0, 0.0, 0.0], 1.0).unwrap();
+            let mut cfg = PopConfig::new::<f32>(16);
+            cfg.tolerance = 1e-3;
+            let cpu = pop::solve::<f32>(&m, &[o], &cfg).unwrap();
+            let gpu = pop::gpu::solve(ctx, &m, &[o], &cfg).unwrap();
+            let (c, g) = (&cpu.runs[0], &gpu.runs[0]);
+            let k = pop::gpu::DEFAULT_CHECK_EVERY as usize;
+            eprintln!(
+                "T17 ε_L = 1e-3: CPU {} steps ({:?}), GPU {} steps ({:?}), K = {k}, {} read-backs",
+                c.steps,
+                c.stop,
+                g.steps,
+                g.stop,
+                g.history.len()
+            );
+            assert_eq!((c.stop, g.stop), (Stop::Converged, Stop::Converged));
+            assert_eq!(g.steps % k, 0);
+            assert!(g.steps + k > c.steps && g.steps < c.steps + 2 * k);
+            let rel = (g.steps as f64 - c.steps as f64).abs() / c.steps as f64;
+            assert!(rel <= 0.02, "step counts differ by {rel:.3}");
+            assert_eq!(g.history.len(), g.steps / k);
+            // φ at the two stops differs by the light of the extra steps only (< ε_L per step).
+            let r = rel_where_large(&g.acc, &c.acc, 3, 0);
+            eprintln!("T17 ε_L = 1e-3: max relative φ difference {r:.3e}");
+            assert!(r <= 1e-2, "{r:e}");
+        },
+    );
+}
+
+/// T10 on the GPU: three channels (different σs, albedo, g) and two ordinates in one solve
+/// equal the single-channel single-ordinate solves (φ within 10⁻⁵ relative, world grid); the
+/// second ordinate of a solve reuses the first one's buffers, so this also checks that
+/// nothing of an ordinate is left in them.
+#[test]
+fn t10_superposition_and_channel_independence_on_the_gpu() {
+    on_gpu(
+        "t10_superposition_and_channel_independence_on_the_gpu",
+        |ctx| {
+            let grid = Grid::cube(8, 1.0).unwrap();
+            let mut media = Vec::new();
+            for (s, al) in [(2.0, 0.9), (5.0, 1.0), (1.0, 0.3)] {
+                media.push(Medium::<f64>::homogeneous(grid, s, al).unwrap());
+            }
+            let g = [0.3, 0.9, 0.0];
+            let rgb = PopMedium::new(&media, &g).unwrap();
+            let d1 = Ordinate::directional([1.0, 0.2, 0.1], 1.0).unwrap();
+            let d2 = Ordinate::directional([-0.3, 1.0, 0.5], 0.5).unwrap();
+            let cfg = PopConfig::fixed::<f32>(8, 25);
+            let phi = pop::gpu::solve(ctx, &rgb, &[d1, d2], &cfg)
+                .unwrap()
+                .fluence_on(&grid);
+            let mut worst = 0f64;
+            for ch in 0..3 {
+                let mono = PopMedium::new(&media[ch..=ch], &g[ch..=ch]).unwrap();
+                let a = pop::gpu::solve(ctx, &mono, &[d1], &cfg)
+                    .unwrap()
+                    .fluence_on(&grid);
+                let b = pop::gpu::solve(ctx, &mono, &[d2], &cfg)
+                    .unwrap()
+                    .fluence_on(&grid);
+                for i in 0..grid.len() {
+                    let sum = a[0][i] + b[0][i];
+                    worst = worst.max((phi[ch][i] - sum).abs() / sum.max(1e-300));
+                }
+            }
+            eprintln!("T10 GPU: max relative |φ_rgb,both − Σ φ_mono,single| {worst:.3e}");
+            assert!(worst <= 1e-5, "{worst:e}");
+        },
+    );
+}
+
+/// T3 on the GPU: injected = absorbed + exits + in flight at every checkpoint (K = 1, every
+/// step) over 150 iterations on random media (vacuum, 10⁴ contrast, albedo 0–1, g ∈ {0, 0.5,
+/// 0.9, 0.99}, skew d), within 10⁻⁵ of the injected power, and the power in flight does not
+/// rise (beyond 10⁻⁶ relative: f32 sums).
+#[test]
+fn t3_energy_balance_on_the_gpu() {
+    on_gpu("t3_energy_balance_on_the_gpu", |ctx| {
+        let mut rng = SplitMix64::new(11);
+        let mut worst = 0f64;
+        let mut gpu = GpuPop::new(ctx, 12, 1, Lateral::Open, false)
+            .unwrap()
+            .with_check_every(1);
+        for (seed, g) in [(1u64, 0.0), (2, 0.5), (3, 0.9), (4, 0.99)] {
+            let m = random_medium(seed, 10, &[g]);
+            let d = normalise("d", [0, 1, 2].map(|_| rng.next_f64() - 0.5)).unwrap();
+            let cfg = PopConfig::new::<f32>(12);
+            let cpu = prepared(&m, &Ordinate::directional(d, 2.0).unwrap(), &cfg);
+            gpu.load(&cpu).unwrap();
+            gpu.run(1e-30, 150).unwrap();
+            assert_eq!(gpu.history().len(), gpu.steps());
+            let l = gpu.ledger()[0];
+            let imbalance = l.imbalance().abs() / l.injected;
+            worst = worst.max(imbalance);
+            assert!(imbalance <= 1e-5, "seed {seed}: {imbalance:e}");
+            for w in gpu.history().windows(2) {
+                assert!(
+                    w[1].1 <= w[0].1 * (1.0 + 1e-6),
+                    "seed {seed}: R rose at step {}: {} → {}",
+                    w[1].0,
+                    w[0].1,
+                    w[1].1
+                );
+            }
+        }
+        eprintln!("T3 GPU: largest final |imbalance|/injected {worst:.3e}");
+    });
+}
+
+/// T3 at every step: the same state run one step at a time (one checkpoint per call).
+#[test]
+fn t3_energy_balance_every_step_on_the_gpu() {
+    on_gpu("t3_energy_balance_every_step_on_the_gpu", |ctx| {
+        let m = random_medium(3, 10, &[0.9]);
+        let d = normalise("d", [0.3, -0.5, 0.8]).unwrap();
+        let cfg = PopConfig::new::<f32>(12);
+        let cpu = prepared(&m, &Ordinate::directional(d, 2.0).unwrap(), &cfg);
+        let mut gpu = GpuPop::new(ctx, 12, 1, Lateral::Open, false).unwrap();
+        gpu.load(&cpu).unwrap();
+        let mut worst = 0f64;
+        for step in 1..=120 {
+            gpu.run(0.0, step).unwrap();
+            let l = gpu.ledger()[0];
+            let r = l.imbalance().abs() / l.injected;
+            worst = worst.max(r);
+            assert!(r <= 1e-5, "step {step}: {r:e}");
+        }
+        eprintln!("T3 GPU, every step of 120: max |imbalance|/injected {worst:.3e}");
+    });
+}
+
+/// T4 on the GPU: g ∈ {0, 1}, vacuum cells and σΔx from 10⁻⁶ to 10³ (as the CPU's t4):
+/// L finite and ≥ 0, a ∈ [0, 1], every accumulator finite and ≥ 0 (with an observer, so the
+/// Eq 8 lobe at a = 1, the f_hg denominator's guard, is evaluated).
+#[test]
+fn t4_sanity_on_the_gpu() {
+    on_gpu("t4_sanity_on_the_gpu", |ctx| {
+        let n = 8;
+        let mut gpu = GpuPop::new(ctx, n, 1, Lateral::Open, true).unwrap();
+        for g in [0.0, 1.0] {
+            for sdx in [1e-6, 1e-2, 1.0, 1e3] {
+                let grid = Grid::cube(n, 1.0).unwrap();
+                let s = sdx * n as f64;
+                let ss = (0..grid.len())
+                    .map(|i| if i % 4 == 0 { 0.0 } else { s })
+                    .collect();
+                let sa = (0..grid.len())
+                    .map(|i| if i % 3 == 0 { 0.0 } else { 0.1 * s })
+                    .collect();
+                let m = PopMedium {
+                    grid,
+                    sigma_s: vec![ss],
+                    sigma_a: vec![sa],
+                    g: vec![g],
+                };
+                let d = normalise("d", [1.0, 0.3, -0.2]).unwrap();
+                let mut cfg = PopConfig::new::<f32>(n);
+                cfg.observer = Some(Observer::Point([3.0, 0.5, 0.5]));
+                let cpu = prepared(&m, &Ordinate::directional(d, 1.0).unwrap(), &cfg);
+                gpu.load(&cpu).unwrap();
+                let stop = gpu.run(0.0, 200).unwrap();
+                assert_ne!(stop, Stop::NonFinite, "g {g} σΔx {sdx}");
+                let st = gpu.state().unwrap();
+                for c in st.chunks(2) {
+                    assert!(
+                        c[0].is_finite() && c[0] >= 0.0,
+                        "g {g} σΔx {sdx}: L {}",
+                        c[0]
+                    );
+                    assert!((0.0..=1.0).contains(&c[1]), "g {g} σΔx {sdx}: a {}", c[1]);
+                }
+                let acc = gpu.accumulators().unwrap();
+                assert!(
+                    acc.iter().all(|v| v.is_finite() && *v >= 0.0),
+                    "g {g} σΔx {sdx}: accumulators"
+                );
+                assert!(acc[0] > 0.0 || sdx >= 1e3, "g {g} σΔx {sdx}: no light");
+            }
+        }
+    });
+}
+
+/// Two GPU solves of the same problem (two ordinates, ε_L stop) are bitwise identical:
+/// accumulators, ledgers, step counts and histories.
+#[test]
+fn repeated_gpu_runs_are_bitwise_identical() {
+    on_gpu("repeated_gpu_runs_are_bitwise_identical", |ctx| {
+        let m = random_medium(5, 10, &[0.8]);
+        let ords = [
+            Ordinate::directional([1.0, 0.4, 0.2], 1.0).unwrap(),
+            Ordinate::directional([0.0, -1.0, 0.3], 1.0).unwrap(),
+        ];
+        let mut cfg = PopConfig::new::<f32>(12);
+        cfg.init = Init::EntrySlice;
+        cfg.observer = Some(Observer::Direction([0.0, 0.0, 1.0]));
+        let a = pop::gpu::solve(ctx, &m, &ords, &cfg).unwrap();
+        let b = pop::gpu::solve(ctx, &m, &ords, &cfg).unwrap();
+        for (x, y) in a.runs.iter().zip(&b.runs) {
+            assert_eq!(x.steps, y.steps);
+            assert_eq!(x.history, y.history);
+            assert_eq!(x.ledger, y.ledger);
+            let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&x.acc), bits(&y.acc));
+        }
+    });
+}
+
+/// Typed errors: a grid whose indices overflow the kernel's u32 (before any allocation),
+/// and a state loaded into a GPU grid of another size.
+#[test]
+fn gpu_bad_input_gives_typed_errors() {
+    on_gpu("gpu_bad_input_gives_typed_errors", |ctx| {
+        let e = GpuPop::new(ctx, 2048, 1, Lateral::Open, false).unwrap_err();
+        assert!(matches!(e, SolverError::Gpu(_)), "{e}");
+        let e = GpuPop::new(ctx, 1, 1, Lateral::Open, false).unwrap_err();
+        assert!(matches!(e, SolverError::BadParameter { .. }), "{e}");
+        let m = PopMedium::homogeneous(Grid::cube(4, 1.0).unwrap(), 1.0, 0.1, 0.5).unwrap();
+        let cfg = PopConfig::new::<f32>(6);
+        let cpu = prepared(
+            &m,
+            &Ordinate::directional([0.0, 0.0, 1.0], 1.0).unwrap(),
+            &cfg,
+        );
+        let mut gpu = GpuPop::new(ctx, 4, 1, Lateral::Open, false).unwrap();
+        let e = gpu.load(&cpu).unwrap_err();
+        assert!(matches!(e, SolverError::Unsupported(_)), "{e}");
+    });
+}
