@@ -16,13 +16,22 @@
 //!   its ratio to the STREAM triad and copy over the same footprint (best before and after).
 //!   Printed and written to `results/bench/pop.csv`.
 //!
+//! * `pop_fig14/gpu` (when a GPU adapter exists): the same propagation on
+//!   [`solvers::pop::GpuPop`], the grids prepared and injected on the host beforehand and
+//!   each loaded (uploaded) before its timed steps; the time is the sum of the 64 ordinates'
+//!   step passes (GPU timestamps when the device has them). Its summary row has no CPU
+//!   bandwidth probes (NaN) and the wall-clock `pop::gpu::solve` as `solve_ms`.
+//!
 //! Without `--bench` (`cargo test --benches`) a smoke run at 8³ × 8 ordinates × 2 iterations.
 
 use benches::bandwidth::{copy_gbs, len_for_total_bytes, stream_rule_len, triad_gbs};
 use benches::median_seconds;
 use criterion::{Criterion, Throughput};
 use rayon::prelude::*;
-use solvers::pop::{self, CpuPop, Ordinate, PopConfig, PopMedium, Prefilter, PropagationGrid};
+use solvers::gpu::GpuContext;
+use solvers::pop::{
+    self, CpuPop, GpuPop, Ordinate, PopConfig, PopMedium, Prefilter, PropagationGrid,
+};
 use solvers::{Grid, Real};
 use std::time::Duration;
 
@@ -177,6 +186,91 @@ fn bench<T: Real>(c: &mut Criterion, s: &Setting, summary: bool, rows: &mut Vec<
     ));
 }
 
+/// Seconds of `iterations` GPU steps of every ordinate (each loaded first, untimed).
+fn propagate_gpu(
+    gpu: &mut GpuPop<'_>,
+    grids: &[CpuPop<f32>],
+    ords: &[Ordinate],
+    cfg: &PopConfig,
+) -> f64 {
+    let mut seconds = 0.0;
+    for (g, o) in grids.iter().zip(ords) {
+        let mut p = g.clone();
+        p.inject(o, cfg.init);
+        let steps = u32::try_from(cfg.max_iterations).unwrap_or(u32::MAX);
+        seconds += gpu
+            .load(&p)
+            .and_then(|()| gpu.time_steps(steps))
+            .unwrap_or_else(|e| fail(&format!("gpu: {e}")));
+    }
+    seconds
+}
+
+fn bench_gpu(c: &mut Criterion, s: &Setting, summary: bool, rows: &mut Vec<String>) {
+    let ctx = match GpuContext::from_env() {
+        Ok(ctx) => ctx,
+        Err(e) => {
+            eprintln!("pop bench: GPU part skipped: no GPU adapter ({e})");
+            return;
+        }
+    };
+    eprintln!("pop bench GPU on {}", ctx.describe());
+    let m = medium(s);
+    let ords = ordinates(s);
+    let cfg = PopConfig::fixed::<f32>(s.n, s.iterations);
+    let grids = prepared::<f32>(&m, &ords, &cfg);
+    let mut gpu = GpuPop::new(&ctx, s.n, m.channels(), cfg.lateral, false)
+        .unwrap_or_else(|e| fail(&format!("gpu: {e}")));
+    let updates = (s.ordinates * s.n.pow(3) * s.iterations) as u64;
+    let mut group = c.benchmark_group("pop_fig14/gpu");
+    group.throughput(Throughput::Elements(updates));
+    group.bench_function("propagation", |b| {
+        b.iter_custom(|iters| {
+            let total: f64 = (0..iters)
+                .map(|_| propagate_gpu(&mut gpu, &grids, &ords, &cfg))
+                .sum();
+            Duration::from_secs_f64(total)
+        })
+    });
+    group.finish();
+    if !summary {
+        return;
+    }
+    let mut times: Vec<f64> = (0..SUMMARY_RUNS)
+        .map(|_| propagate_gpu(&mut gpu, &grids, &ords, &cfg))
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let seconds = times[times.len() / 2];
+    let solve_seconds = median_seconds(3, || {
+        pop::gpu::solve(&ctx, &m, &ords, &cfg).map(|s| s.runs.len())
+    });
+    let bytes_per_step = s.ordinates * s.n.pow(3) * 3 * BYTES_PER_UPDATE_VALUES * 4;
+    let rate = updates as f64 / seconds;
+    let gbs = bytes_per_step as f64 * s.iterations as f64 / seconds / 1e9;
+    println!(
+        "summary: pop gpu f32 {}x{}^3x{} on {}: propagation {:.3} ms ({:.3e} RGB cell-updates/s, {} timer), solve {:.1} ms; {:.2} GB/s effective",
+        s.ordinates,
+        s.n,
+        s.iterations,
+        ctx.describe(),
+        seconds * 1e3,
+        rate,
+        ctx.timer(),
+        solve_seconds * 1e3,
+        gbs
+    );
+    rows.push(format!(
+        "gpu,0,f32,{},{},{},{:.4},{:.4},{:.4e},{:.3},NaN,NaN,NaN,NaN,NaN,NaN",
+        s.ordinates,
+        s.n,
+        s.iterations,
+        seconds * 1e3,
+        solve_seconds * 1e3,
+        rate,
+        gbs
+    ));
+}
+
 fn main() {
     let bench_mode = benches::cli::benchmark_mode();
     let s = if bench_mode {
@@ -202,6 +296,7 @@ fn main() {
     let mut rows = Vec::new();
     bench::<f32>(&mut c, &s, bench_mode, &mut rows);
     bench::<f64>(&mut c, &s, bench_mode, &mut rows);
+    bench_gpu(&mut c, &s, bench_mode, &mut rows);
     c.final_summary();
     if !bench_mode || rows.is_empty() {
         return;

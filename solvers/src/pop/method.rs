@@ -17,6 +17,11 @@
 //! power in flight over the injected power; [`Solution::last_change`] is its largest final
 //! value over the ordinates; `rel` = 0 runs exactly `max_steps` iterations (the paper's M).
 //!
+//! **Backends.** CPU f32/f64 ([`super::solve`]) and the GPU (f32, [`super::gpu::solve`]),
+//! which tests `rel` every [`super::gpu::DEFAULT_CHECK_EVERY`] iterations, so it stops up to
+//! that many − 1 iterations after the CPU would (397 vs 400 on the Fig 12 cube, `mod.rs`);
+//! the observer then sees those checkpoints only.
+//!
 //! **Variants** (the paper-faithful choices of `mod.rs`): none (D1 entry-slice init, D11
 //! prefilter), `per-cell` (Sec 4.1's per-cell init, [`Init::PaperPerCell`]), `heuristic`
 //! (the paper's prefilter a_n = (1 − w_n/N)^β, parameter `beta`, default 1). The literal
