@@ -398,3 +398,61 @@ fn gpu_bad_input_gives_typed_errors() {
         assert!(matches!(e, SolverError::Unsupported(_)), "{e}");
     });
 }
+
+/// The registered method on the GPU backend under a constant environment (8 Fibonacci
+/// ordinates through one reused GPU state) plus a directional light, random heterogeneous
+/// medium, 40 fixed iterations: φ within 10⁻³ relative of CPU-f32 where φ > 10⁻⁶ max, the
+/// same step count, and the ledgers' balance.
+#[test]
+fn method_on_the_gpu_matches_cpu_f32_under_an_environment() {
+    use solvers::method::{self, Params, Problem, Tolerance};
+    use solvers::scene::{Light, Phase};
+    on_gpu(
+        "method_on_the_gpu_matches_cpu_f32_under_an_environment",
+        |ctx| {
+            let grid = Grid::cube(10, 1.0).unwrap();
+            let mut rng = SplitMix64::new(7);
+            let sigma_t = (0..grid.len())
+                .map(|_| 10.0 * rng.next_f64().powi(2))
+                .collect();
+            let albedo = (0..grid.len()).map(|_| rng.next_f64()).collect();
+            let medium = Medium::new(grid, sigma_t, albedo, vec![0.0; grid.len()]).unwrap();
+            let lights = [
+                Light::Environment { radiance: 0.7 },
+                Light::directional([0.3, -0.2, -1.0], 2.0).unwrap(),
+            ];
+            let p = Problem {
+                medium: &medium,
+                lights: &lights,
+                phase: Phase::HenyeyGreenstein { g: 0.8 },
+            };
+            let m = method::parse_with("pop", &Params::none().with("ordinates", 8.0)).unwrap();
+            let t = Tolerance::fixed_steps(40);
+            let gpu = m.solve(&Backend::Gpu(ctx), &p, &t, &mut |_, _| {}).unwrap();
+            let cpu = m
+                .solve(
+                    &Backend::Cpu(solvers::Precision::F32),
+                    &p,
+                    &t,
+                    &mut |_, _| {},
+                )
+                .unwrap();
+            assert_eq!(gpu.steps, cpu.steps);
+            let max = cpu.phi.iter().cloned().fold(0.0, f64::max);
+            assert!(max > 0.0);
+            let worst = gpu
+                .phi
+                .iter()
+                .zip(&cpu.phi)
+                .filter(|(_, c)| **c > 1e-6 * max)
+                .map(|(g, c)| (g - c).abs() / c)
+                .fold(0.0, f64::max);
+            eprintln!("method pop GPU vs CPU-f32 (environment + sun): max relative φ {worst:.3e}");
+            assert!(worst <= 1e-3, "{worst:e}");
+            let (bg, bc) = (gpu.balance.unwrap(), cpu.balance.unwrap());
+            let rel = |a: f64, b: f64| (a - b).abs() / b.abs().max(1e-300);
+            assert!(rel(bg.outflow, bc.outflow) <= 1e-4, "{bg:?} vs {bc:?}");
+            assert!(rel(bg.absorbed, bc.absorbed) <= 1e-4, "{bg:?} vs {bc:?}");
+        },
+    );
+}
