@@ -11,7 +11,8 @@ use solvers::gpu::GpuContext;
 use solvers::noise::SplitMix64;
 use solvers::pop::grid::{box_filter, mip_level, normalise};
 use solvers::pop::{
-    self, CpuPop, GpuPop, Init, Lateral, Observer, Ordinate, PopConfig, PopMedium, PropagationGrid,
+    self, CpuPop, Eq8, GpuPop, Init, Lateral, Observer, Ordinate, PopConfig, PopMedium,
+    PropagationGrid,
 };
 use solvers::{Backend, Grid, Medium, SolverError, Stop};
 
@@ -79,7 +80,8 @@ fn rel_where_large(x: &[f32], y: &[f32], stride: usize, slot: usize) -> f64 {
 }
 
 /// T17 at fixed M: a random two-channel medium (g = 0.7 and 0.95), a skew ordinate, a point
-/// observer (L_acc of Eq 8), open and periodic lateral faces, M = 64, 12³. φ, J and L_acc
+/// observer (L_acc of Eq 8), open and periodic lateral faces, and the paper's per-cell init
+/// with the literal Eq 8 and an orthographic observer, M = 64, 12³. φ, J and L_acc
 /// within 10⁻³ relative where > 10⁻⁶ max; a within 10⁻⁴ absolute where L > 10⁻⁶ max L;
 /// the exit fractions (exits / injected) within 10⁻⁴.
 #[test]
@@ -88,10 +90,33 @@ fn t17_gpu_matches_cpu_f32_at_fixed_m() {
         let m = random_medium(21, 12, &[0.7, 0.95]);
         let d = normalise("d", [0.8, -0.35, 0.45]).unwrap();
         let o = Ordinate::directional(d, 1.5).unwrap();
-        for lateral in [Lateral::Open, Lateral::Periodic] {
+        let variants = [
+            (
+                Lateral::Open,
+                Init::EntrySlice,
+                Eq8::PhaseConvolved,
+                Observer::Point([2.0, 0.3, 0.6]),
+            ),
+            (
+                Lateral::Periodic,
+                Init::EntrySlice,
+                Eq8::PhaseConvolved,
+                Observer::Point([2.0, 0.3, 0.6]),
+            ),
+            // The paper-faithful variants: per-cell init, literal Eq 8, orthographic observer.
+            (
+                Lateral::Open,
+                Init::PaperPerCell,
+                Eq8::Literal,
+                Observer::Direction([0.0, 0.6, 0.8]),
+            ),
+        ];
+        for (lateral, init, eq8, observer) in variants {
             let mut cfg = PopConfig::fixed::<f32>(12, 64);
             cfg.lateral = lateral;
-            cfg.observer = Some(Observer::Point([2.0, 0.3, 0.6]));
+            cfg.init = init;
+            cfg.eq8 = eq8;
+            cfg.observer = Some(observer);
             let mut cpu = prepared(&m, &o, &cfg);
             let mut gpu = GpuPop::new(ctx, 12, 2, lateral, true).unwrap();
             gpu.load(&cpu).unwrap();
@@ -105,7 +130,7 @@ fn t17_gpu_matches_cpu_f32_at_fixed_m() {
             for slot in 0..3 {
                 let r = rel_where_large(&ga, &ca, 3, slot);
                 eprintln!(
-                    "T17 {lateral:?}: {} max relative GPU − CPU-f32 {r:.3e}",
+                    "T17 {lateral:?} {init:?} {eq8:?}: {} max relative GPU − CPU-f32 {r:.3e}",
                     names[slot]
                 );
                 assert!(r <= 1e-3, "{lateral:?} {}: {r:e}", names[slot]);
@@ -127,7 +152,9 @@ fn t17_gpu_matches_cpu_f32_at_fixed_m() {
                     }
                 }
             }
-            eprintln!("T17 {lateral:?}: max |Δa| {worst_a:.3e}, max relative ΔL {worst_l:.3e}");
+            eprintln!(
+                "T17 {lateral:?} {init:?} {eq8:?}: max |Δa| {worst_a:.3e}, max relative ΔL {worst_l:.3e}"
+            );
             assert!(worst_a <= 1e-4, "{lateral:?}: |Δa| {worst_a:e}");
             assert!(worst_l <= 1e-3, "{lateral:?}: ΔL {worst_l:e}");
             for ch in 0..nc {
@@ -149,7 +176,7 @@ fn t17_gpu_matches_cpu_f32_at_fixed_m() {
                     .map(|(a, b)| (a - b).abs())
                     .fold(0.0, f64::max);
                 eprintln!(
-                    "T17 {lateral:?} ch {ch}: exits R/T/side GPU {:.6}/{:.6}/{:.6} CPU \
+                    "T17 {lateral:?} {init:?} {eq8:?} ch {ch}: exits R/T/side GPU {:.6}/{:.6}/{:.6} CPU \
                      {:.6}/{:.6}/{:.6}, max |Δ fraction| {worst:.3e}",
                     fg[0], fg[1], fg[2], fc[0], fc[1], fc[2]
                 );

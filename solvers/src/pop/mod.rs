@@ -57,13 +57,17 @@
 //! 0/0), and Eq 8 uses [`kernel::hg_view`]'s clamped cancellation-free f_hg. Measured on lavapipe
 //! (llvmpipe, Mesa 22.3.6; `solvers/tests/pop_gpu.rs`):
 //! * **T17** (12³ random medium with vacuum and 10⁴ contrast, two channels g = 0.7 / 0.95, skew
-//!   d, point observer, M = 64, open and periodic faces): φ, J, L_acc, L and a are **bitwise
-//!   equal** to CPU-f32 (max difference 0; the shader repeats cpu.rs's operation order and
-//!   lavapipe does not contract to FMA); the exit fractions differ by ≤ 5.0·10⁻⁸ (f32
-//!   per-cell loss sums vs the CPU's f64 per-slice sums; bound 10⁻⁴). The ε_L = 10⁻³ stop on
+//!   d, point observer, M = 64, open and periodic faces; and the paper's per-cell init with the
+//!   literal Eq 8 and an orthographic observer): φ, J, L_acc, L and a are **bitwise
+//!   equal** to CPU-f32 (max difference 0: the shader repeats cpu.rs's operation order, and
+//!   lavapipe's f32 arithmetic matched the CPU's bit for bit; a GPU that fuses multiply-adds
+//!   need not, hence the bounds); the exit fractions differ by ≤ 5.0·10⁻⁸ (2.0·10⁻⁷ with
+//!   the per-cell init; f32 per-cell loss sums vs the CPU's f64 per-slice sums; bound
+//!   10⁻⁴). The ε_L = 10⁻³ stop on
 //!   the Fig 12 cube at g = 0.7, 16³: CPU 397 steps, GPU 400 (the next multiple of K: 0.8 %,
 //!   bound 2 %; φ differs by 1.0·10⁻⁴ relative, the light of the 3 extra steps). The
-//!   conformance suite's `pop::gpu_matches_cpu_f32` (15³, 64 steps) measures 0 too.
+//!   conformance suite's `pop::gpu_matches_cpu_f32` (15³, 64 steps) measures 0 too, and so
+//!   does the method under a constant environment (8 ordinates) plus a sun, 40 iterations.
 //! * **T10**: three channels × two ordinates in one GPU solve = the single-channel
 //!   single-ordinate GPU solves to 0 (bound 10⁻⁵): the reused buffers keep nothing of the
 //!   previous ordinate.
