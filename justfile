@@ -20,10 +20,12 @@ test:
 mitsuba-setup:
     bash scripts/setup-mitsuba.sh
 
-# Our path tracer vs Mitsuba 3 on both example scenes (needs mitsuba-setup; ~1.5 min on 2 cores)
+# Our path tracer vs Mitsuba 3 (scalar_rgb and llvm_ad_rgb) on the committed comparison scenes,
+# paths/s of both and their ratio (needs mitsuba-setup)
 mitsuba-compare:
-    cargo run --release -p experiments --bin mitsuba_compare -- --scene scenes/cloud_directional.toml --variant scalar_rgb,llvm_ad_rgb
-    cargo run --release -p experiments --bin mitsuba_compare -- --scene scenes/emissive_sphere.toml --variant scalar_rgb,llvm_ad_rgb
+    for s in cloud_directional emissive_sphere dense_half_space dense_voxel environment_sphere; do \
+        cargo run --release -p experiments --bin mitsuba_compare -- --scene scenes/$s.toml --variant scalar_rgb,llvm_ad_rgb; \
+    done
 
 # GPU benchmark (wgpu; set WGPU_ADAPTER_NAME to pick an adapter); writes results/bench/diffusion_gpu.csv
 bench-gpu:
