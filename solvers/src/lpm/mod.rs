@@ -114,12 +114,16 @@
 pub mod cpu;
 pub mod directions;
 pub mod geometry;
+pub mod gpu;
+#[cfg(test)]
+mod gpu_tests;
 pub mod method;
 #[cfg(test)]
 mod tests;
 
 pub use cpu::CpuLpm;
 pub use directions::{Directions, PhaseMatrix};
+pub use gpu::GpuLpm;
 pub use method::{LPM, LpmMethod};
 
 use crate::method::Stop;
@@ -517,7 +521,7 @@ impl<T: Real> LpmSolution<T> {
     }
 }
 
-/// Solves on the CPU in the backend's precision; fields come back in f64.
+/// Solves on the backend (CPU in its precision, or the GPU in f32); fields come back in f64.
 pub fn solve(
     backend: &Backend<'_>,
     medium: &Medium<f64>,
@@ -525,32 +529,32 @@ pub fn solve(
     config: &LpmConfig,
     observer: impl FnMut(usize, f64),
 ) -> Result<LpmSolution<f64>, SolverError> {
-    fn run<T: Real>(
-        medium: &Medium<f64>,
-        boundary: &BoundaryLight,
-        config: &LpmConfig,
-        observer: impl FnMut(usize, f64),
-    ) -> Result<LpmSolution<f64>, SolverError> {
-        let s = CpuLpm::<T>::new(&medium.cast(), config)?.solve(boundary, observer)?;
-        let w = |v: Vec<T>| v.into_iter().map(|x| x.f()).collect::<Vec<f64>>();
-        Ok(LpmSolution {
-            grid: s.grid,
-            intensity: s.intensity.into_iter().map(w).collect(),
-            unshot: s.unshot.into_iter().map(w).collect(),
-            phi: w(s.phi),
-            phi_orders: s.phi_orders.into_iter().map(w).collect(),
-            orders: s.orders,
-            tallies: s.tallies,
-            stop: s.stop,
-            seconds: s.seconds,
-            memory: s.memory,
-        })
-    }
     match backend {
-        Backend::Cpu(Precision::F64) => run::<f64>(medium, boundary, config, observer),
-        Backend::Cpu(Precision::F32) => run::<f32>(medium, boundary, config, observer),
-        Backend::Gpu(_) => Err(SolverError::Unsupported(
-            "lpm has no GPU backend yet (CPU only)".into(),
+        Backend::Cpu(Precision::F64) => Ok(widen(
+            CpuLpm::<f64>::new(&medium.cast(), config)?.solve(boundary, observer)?,
         )),
+        Backend::Cpu(Precision::F32) => Ok(widen(
+            CpuLpm::<f32>::new(&medium.cast(), config)?.solve(boundary, observer)?,
+        )),
+        Backend::Gpu(ctx) => Ok(widen(
+            GpuLpm::new(ctx, medium, config)?.solve(boundary, observer)?,
+        )),
+    }
+}
+
+/// A solution with its fields in f64.
+pub fn widen<T: Real>(s: LpmSolution<T>) -> LpmSolution<f64> {
+    let w = |v: Vec<T>| v.into_iter().map(|x| x.f()).collect::<Vec<f64>>();
+    LpmSolution {
+        grid: s.grid,
+        intensity: s.intensity.into_iter().map(w).collect(),
+        unshot: s.unshot.into_iter().map(w).collect(),
+        phi: w(s.phi),
+        phi_orders: s.phi_orders.into_iter().map(w).collect(),
+        orders: s.orders,
+        tallies: s.tallies,
+        stop: s.stop,
+        seconds: s.seconds,
+        memory: s.memory,
     }
 }
