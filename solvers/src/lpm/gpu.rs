@@ -16,7 +16,7 @@
 //! tallies. `reduce` sums in a fixed order (a per-thread stride, then a tree). The ray tallies
 //! are one word per (direction, ray). No word is written by two threads of one dispatch,
 //! nothing is atomic, and the results are bitwise reproducible (test
-//! `gpu_runs_are_bitwise_identical`).
+//! `t18_gpu_runs_are_bitwise_identical`).
 //!
 //! **Orders** run as Jacobi over two U buffers (two bind-group sets). The stopping test of D1
 //! is evaluated by `reduce` on the GPU after every order; once it holds, every later kernel

@@ -27,6 +27,10 @@
 //! outflow misses exactly the unshot power: the balance's outflow/source is 1 − O(rel).
 //! `rel` = 0 runs exactly `max_steps` orders (Alg 2's fixed count; the paper's 3).
 //!
+//! **Backends.** CPU f32 and f64 ([`CpuLpm`]) and the GPU in f32 ([`GpuLpm`]) for `lpm` and
+//! `lpm:baked`; `lpm:paper` is CPU-only (its deposit has no GPU kernel: a typed
+//! [`SolverError::Unsupported`], and `capabilities().gpu` is false).
+//!
 //! Variants: none and `baked` (the exact formulas) and `paper` (LPM Eqs 3, 4, 6 literally with the zero
 //! wrap: reproduction only, never in the atlas, which takes each family's default).
 //! Parameter: `m` (cells per face edge, default 5: 150 directions).
@@ -88,6 +92,7 @@ impl LpmMethod {
         tolerance: &Tolerance,
         observer: &mut dyn FnMut(usize, f64),
         solve: &SolveFn<'_, T>,
+        timer: Timer,
     ) -> Result<Fluence, SolverError> {
         let setup = std::time::Instant::now();
         let cfg = self.config_for(problem, tolerance);
@@ -110,7 +115,11 @@ impl LpmMethod {
             };
             let t0 = std::time::Instant::now();
             let zero = solve(&dark, &once, &dir, &mut |_, _| {})?;
-            s.seconds += t0.elapsed().as_secs_f64();
+            // Its whole wall time on the CPU (as before), its kernel time on GPU timestamps.
+            s.seconds += match timer {
+                Timer::WallClock => t0.elapsed().as_secs_f64(),
+                Timer::GpuTimestamps => zero.seconds,
+            };
             for (p, z) in s.phi.iter_mut().zip(&zero.phi) {
                 *p = (*p - *z).max(T::zero());
             }
@@ -131,7 +140,7 @@ impl LpmMethod {
             stop: s.stop,
             seconds: s.seconds,
             setup_seconds,
-            timer: Timer::WallClock,
+            timer,
             balance: Some(balance),
             trace: (),
         })
@@ -222,17 +231,29 @@ impl Method for LpmMethod {
                     self.name()
                 )));
             }
-            return self.run::<f32>(problem, tolerance, observer, &|m, c, b, o| {
-                GpuLpm::new(ctx, m, c)?.solve(b, o)
-            });
+            return self.run::<f32>(
+                problem,
+                tolerance,
+                observer,
+                &|m, c, b, o| GpuLpm::new(ctx, m, c)?.solve(b, o),
+                ctx.timer(),
+            );
         }
         match crate::method::cpu_precision(&self.name(), backend)? {
-            Precision::F64 => self.run::<f64>(problem, tolerance, observer, &|m, c, b, o| {
-                CpuLpm::<f64>::new(&m.cast(), c)?.solve(b, o)
-            }),
-            Precision::F32 => self.run::<f32>(problem, tolerance, observer, &|m, c, b, o| {
-                CpuLpm::<f32>::new(&m.cast(), c)?.solve(b, o)
-            }),
+            Precision::F64 => self.run::<f64>(
+                problem,
+                tolerance,
+                observer,
+                &|m, c, b, o| CpuLpm::<f64>::new(&m.cast(), c)?.solve(b, o),
+                Timer::WallClock,
+            ),
+            Precision::F32 => self.run::<f32>(
+                problem,
+                tolerance,
+                observer,
+                &|m, c, b, o| CpuLpm::<f32>::new(&m.cast(), c)?.solve(b, o),
+                Timer::WallClock,
+            ),
         }
     }
 
