@@ -15,13 +15,20 @@
 //!   per order) and its ratio to the STREAM triad over the same footprint, best of probes
 //!   before and after; printed and written to `results/bench/lpm.csv`.
 //!
+//! * Criterion group `lpm_rgb/gpu` (when an adapter exists): the same three channel solves
+//!   with [`GpuLpm`] (buffers and tables built once per channel outside; one iteration
+//!   includes the init copies and the final readback of I, U and φ); in benchmark mode a
+//!   summary line with the kernels' own seconds (GPU timestamps where the device has them).
+//!   Not in the CSV.
+//!
 //! Sizes 64 and 128 by default; `SCATTERBENCH_BENCH_SIZES` overrides them; without `--bench`
 //! (`cargo test --benches`) a 12³ smoke run.
 
 use benches::bandwidth::{len_for_total_bytes, triad_gbs};
 use benches::median_seconds;
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput};
-use solvers::lpm::{BoundaryLight, CpuLpm, LpmConfig, LpmMethod};
+use solvers::gpu::GpuContext;
+use solvers::lpm::{BoundaryLight, CpuLpm, GpuLpm, LpmConfig, LpmMethod};
 use solvers::method::Method;
 use solvers::noise::Perlin;
 use solvers::{Grid, Medium, Precision, Real};
@@ -141,6 +148,64 @@ fn bench_cpu<T: Real>(c: &mut Criterion, sizes: &[usize], summary: bool, rows: &
     group.finish();
 }
 
+fn bench_gpu(c: &mut Criterion, sizes: &[usize], summary: bool) {
+    let ctx = match GpuContext::from_env() {
+        Ok(ctx) => ctx,
+        Err(e) => {
+            eprintln!("lpm bench: GPU part skipped: no GPU adapter ({e})");
+            return;
+        }
+    };
+    eprintln!("lpm bench GPU on {}", ctx.describe());
+    let cfg = LpmConfig {
+        keep_orders: false,
+        ..LpmConfig::default()
+    };
+    let mut group = c.benchmark_group("lpm_rgb/gpu");
+    group.sampling_mode(SamplingMode::Flat);
+    group.sample_size(10);
+    for &n in sizes {
+        let built: Result<Vec<GpuLpm<'_>>, _> = CHANNEL_SCALE
+            .iter()
+            .map(|&s| GpuLpm::new(&ctx, &medium::<f64>(n, s), &cfg))
+            .collect();
+        let mut solvers = match built {
+            Ok(s) => s,
+            Err(e) => {
+                eprintln!("gpu {n}³: skipped: {e}");
+                continue;
+            }
+        };
+        let mut light = BoundaryLight::directional(&solvers[0].setup.dirs, [0.3, -0.4, -0.87], 5.0)
+            .unwrap_or_else(|e| fail(&e.to_string()));
+        for l in &mut light.radiance {
+            *l += 1.0;
+        }
+        let mut rgb = || -> f64 {
+            let mut kernel_seconds = 0.0;
+            for s in &mut solvers {
+                match s.solve(&light, |_, _| {}) {
+                    Ok(sol) => kernel_seconds += sol.seconds,
+                    Err(e) => fail(&format!("gpu {n}³: {e}")),
+                }
+            }
+            kernel_seconds
+        };
+        group.throughput(Throughput::Elements((3 * n * n * n) as u64));
+        group.bench_function(BenchmarkId::from_parameter(n), |b| b.iter(&mut rgb));
+        if summary {
+            let mut runs: Vec<f64> = (0..SUMMARY_RUNS).map(|_| rgb()).collect();
+            runs.sort_by(f64::total_cmp);
+            println!(
+                "summary: gpu {n}³ f32 RGB, 3 orders: {:.2} ms kernel time per RGB solve (median of {SUMMARY_RUNS}, {})",
+                runs[runs.len() / 2] * 1e3,
+                ctx.timer()
+            );
+        }
+    }
+    group.finish();
+}
+
 fn main() {
     let bench = benches::cli::benchmark_mode();
     let sizes = benches::cli::sizes(SIZES_ENV, bench, &DEFAULT_SIZES, &TEST_SIZES)
@@ -152,6 +217,7 @@ fn main() {
         .configure_from_args();
     let mut rows = Vec::new();
     bench_cpu::<f32>(&mut c, &sizes, bench, &mut rows);
+    bench_gpu(&mut c, &sizes, bench);
     c.final_summary();
     if !bench || rows.is_empty() {
         return;

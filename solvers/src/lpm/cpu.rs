@@ -27,13 +27,13 @@ pub struct CpuLpm<T> {
     pub phase: PhaseMatrix,
     /// One sub-segment table per direction (its face's sweep length).
     pub tables: Vec<DirectionTable>,
-    sigma_t: Vec<T>,
-    sigma_s: Vec<T>,
+    pub(super) sigma_t: Vec<T>,
+    pub(super) sigma_s: Vec<T>,
     /// σt and σs in the x-faces' layout ([`to_x_layout`]), so their sweeps run along memory.
     sigma_t_x: Vec<T>,
     sigma_s_x: Vec<T>,
     /// U⁰ = I⁰ = j/4π per voxel (D9).
-    source: Vec<T>,
+    pub(super) source: Vec<T>,
 }
 
 /// (E, φ1, φ2) of optical depth τ: E = e^{−τ}, φ1 = (1 − E)/τ, φ2 = (τ − 1 + E)/τ² (spec

@@ -27,17 +27,23 @@
 //! outflow misses exactly the unshot power: the balance's outflow/source is 1 − O(rel).
 //! `rel` = 0 runs exactly `max_steps` orders (Alg 2's fixed count; the paper's 3).
 //!
+//! **Backends.** CPU f32 and f64 ([`CpuLpm`]) and the GPU in f32 ([`GpuLpm`]) for `lpm` and
+//! `lpm:baked`; `lpm:paper` is CPU-only (its deposit has no GPU kernel: a typed
+//! [`SolverError::Unsupported`], and `capabilities().gpu` is false).
+//!
 //! Variants: none and `baked` (the exact formulas) and `paper` (LPM Eqs 3, 4, 6 literally with the zero
 //! wrap: reproduction only, never in the atlas, which takes each family's default).
 //! Parameter: `m` (cells per face edge, default 5: 150 directions).
 
-use super::{BoundaryLight, CpuLpm, Formulas, LpmConfig, Orders, WrapBc};
+use super::{
+    BoundaryLight, CpuLpm, Deposit, Formulas, GpuLpm, LpmConfig, LpmSolution, Orders, WrapBc,
+};
 use crate::gpu::Timer;
 use crate::method::{
     Balance, Capabilities, DirectLight, Fluence, LightInput, Method, MethodFamily, Problem,
     Solution, Tolerance,
 };
-use crate::{Backend, Grid, Precision, Real, SolverError};
+use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
 
 /// LPM with its settings.
 #[derive(Debug, Clone, PartialEq)]
@@ -78,21 +84,27 @@ impl LpmMethod {
         }
     }
 
+    /// One solve with `solve` (a CPU or GPU solver built per call): the lights, the
+    /// directional lights' order 0 subtracted, the balance.
     fn run<T: Real>(
         &self,
         problem: &Problem<'_>,
         tolerance: &Tolerance,
         observer: &mut dyn FnMut(usize, f64),
+        solve: &SolveFn<'_, T>,
+        timer: Timer,
     ) -> Result<Fluence, SolverError> {
         let setup = std::time::Instant::now();
         let cfg = self.config_for(problem, tolerance);
-        let lpm = CpuLpm::<T>::new(&problem.medium.cast(), &cfg)?;
+        cfg.validate()?;
+        let dirs = super::Directions::new(cfg.m)?;
         let (boundary, directional) = match self.lights {
-            LightInput::Baked => (BoundaryLight::none(&lpm.dirs), None),
-            LightInput::Direct => self.boundary(&lpm.dirs, problem)?,
+            LightInput::Baked => (BoundaryLight::none(&dirs), None),
+            LightInput::Direct => self.boundary(&dirs, problem)?,
         };
-        let setup_seconds = setup.elapsed().as_secs_f64();
-        let mut s = lpm.solve(&boundary, observer)?;
+        let mut s = solve(problem.medium, &cfg, &boundary, observer)?;
+        // Everything before the dark solve but the orders themselves is setup.
+        let setup_seconds = (setup.elapsed().as_secs_f64() - s.seconds).max(0.0);
         if let Some(dir) = directional {
             // The directional lights' order 0 alone: same ray tables, no source, one order.
             let mut dark = problem.medium.clone();
@@ -102,8 +114,12 @@ impl LpmMethod {
                 ..cfg.clone()
             };
             let t0 = std::time::Instant::now();
-            let zero = CpuLpm::<T>::new(&dark.cast(), &once)?.solve(&dir, |_, _| {})?;
-            s.seconds += t0.elapsed().as_secs_f64();
+            let zero = solve(&dark, &once, &dir, &mut |_, _| {})?;
+            // Its whole wall time on the CPU (as before), its kernel time on GPU timestamps.
+            s.seconds += match timer {
+                Timer::WallClock => t0.elapsed().as_secs_f64(),
+                Timer::GpuTimestamps => zero.seconds,
+            };
             for (p, z) in s.phi.iter_mut().zip(&zero.phi) {
                 *p = (*p - *z).max(T::zero());
             }
@@ -124,12 +140,21 @@ impl LpmMethod {
             stop: s.stop,
             seconds: s.seconds,
             setup_seconds,
-            timer: Timer::WallClock,
+            timer,
             balance: Some(balance),
             trace: (),
         })
     }
 }
+
+/// A solver built per call: (medium, settings, boundary light, observer) → solution.
+type SolveFn<'s, T> = dyn Fn(
+        &Medium<f64>,
+        &LpmConfig,
+        &BoundaryLight,
+        &mut dyn FnMut(usize, f64),
+    ) -> Result<LpmSolution<T>, SolverError>
+    + 's;
 
 impl LpmMethod {
     /// The boundary radiance of every light of `problem`, and that of its directional
@@ -181,7 +206,8 @@ impl Method for LpmMethod {
 
     fn capabilities(&self) -> Capabilities {
         Capabilities {
-            gpu: false,
+            // The paper's deposit has no GPU kernel (`lpm:paper`).
+            gpu: self.config.formulas.deposit != Deposit::Paper,
             f64: true,
             volume_source: true,
             anisotropic: true,
@@ -198,10 +224,41 @@ impl Method for LpmMethod {
         observer: &mut dyn FnMut(usize, f64),
     ) -> Result<Fluence, SolverError> {
         tolerance.validate()?;
-        match crate::method::cpu_precision(&self.name(), backend)? {
-            Precision::F64 => self.run::<f64>(problem, tolerance, observer),
-            Precision::F32 => self.run::<f32>(problem, tolerance, observer),
+        if let Backend::Gpu(ctx) = backend {
+            if !self.capabilities().gpu {
+                return Err(SolverError::Unsupported(format!(
+                    "{}: the paper's deposit has no GPU kernel (CPU only)",
+                    self.name()
+                )));
+            }
+            return self.run::<f32>(
+                problem,
+                tolerance,
+                observer,
+                &|m, c, b, o| GpuLpm::new(ctx, m, c)?.solve(b, o),
+                ctx.timer(),
+            );
         }
+        match crate::method::cpu_precision(&self.name(), backend)? {
+            Precision::F64 => self.run::<f64>(
+                problem,
+                tolerance,
+                observer,
+                &|m, c, b, o| CpuLpm::<f64>::new(&m.cast(), c)?.solve(b, o),
+                Timer::WallClock,
+            ),
+            Precision::F32 => self.run::<f32>(
+                problem,
+                tolerance,
+                observer,
+                &|m, c, b, o| CpuLpm::<f32>::new(&m.cast(), c)?.solve(b, o),
+                Timer::WallClock,
+            ),
+        }
+    }
+
+    fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {
+        &[&super::gpu::SPEC]
     }
 
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {

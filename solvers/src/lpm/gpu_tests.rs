@@ -1,0 +1,386 @@
+//! Tests of the LPM GPU kernels (T7, T15, T18, T20 on the GPU; T24 is `tests/wgsl.rs` and
+//! `tests/kernel_contract.rs`). Without an adapter each test prints one "skipped" line and
+//! passes, unless `SCATTERBENCH_REQUIRE_GPU=1`. Sizes are for lavapipe (≤ 16³, m ≤ 5).
+//! Numbers quoted in `mod.rs` are printed by these tests
+//! (`cargo test --release -p solvers --lib lpm::gpu_tests -- --nocapture`).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::needless_range_loop)]
+
+use super::directions::Directions;
+use super::*;
+use crate::gpu::GpuContext;
+use crate::noise::SplitMix64;
+use crate::{Backend, Grid, Medium, Precision};
+use std::f64::consts::PI;
+use std::sync::{Mutex, OnceLock};
+
+static GPU: OnceLock<Option<Mutex<GpuContext>>> = OnceLock::new();
+
+/// Runs `body` on the shared test device (one test at a time), or prints that it skipped.
+fn with_gpu(test: &str, body: impl FnOnce(&GpuContext)) {
+    let gpu = GPU.get_or_init(|| {
+        GpuContext::for_tests()
+            .unwrap_or_else(|e| panic!("SCATTERBENCH_REQUIRE_GPU is set: {e}"))
+            .map(Mutex::new)
+    });
+    match gpu {
+        None => crate::gpu::log_uncaptured(&format!("{test}: skipped: no GPU adapter")),
+        Some(m) => {
+            let ctx = m.lock().unwrap_or_else(|e| e.into_inner());
+            crate::gpu::log_uncaptured(&format!("{test}: ran on {}", ctx.describe()));
+            body(&ctx);
+        }
+    }
+}
+
+/// White-noise medium as `tests::random_medium`: σt·h in [0, 3) with 20 % vacuum, albedo
+/// in [0, 1], emission in 5 % of the voxels.
+fn random_medium(n: [usize; 3], seed: u64) -> Medium<f64> {
+    let grid = Grid::new(n, 0.1).unwrap();
+    let mut rng = SplitMix64::new(seed);
+    let nv = grid.len();
+    let (mut st, mut al, mut em) = (vec![0.0; nv], vec![0.0; nv], vec![0.0; nv]);
+    for v in 0..nv {
+        st[v] = if rng.next_f64() < 0.2 {
+            0.0
+        } else {
+            30.0 * rng.next_f64()
+        };
+        al[v] = rng.next_f64();
+        if rng.next_f64() < 0.05 {
+            em[v] = 1.0 + rng.next_f64();
+        }
+    }
+    Medium::new(grid, st, al, em).unwrap()
+}
+
+/// An environment of radiance 1 plus a directional light of irradiance 2.
+fn lights(m: usize) -> BoundaryLight {
+    let dirs = Directions::new(m).unwrap();
+    let mut b = BoundaryLight::uniform(&dirs, 1.0);
+    let d = BoundaryLight::directional(&dirs, [0.3, -0.2, 0.9], 2.0).unwrap();
+    for (x, y) in b.radiance.iter_mut().zip(&d.radiance) {
+        *x += y;
+    }
+    b
+}
+
+/// (max |a − r|/r where r > 10⁻⁶ max r, relative RMSE √(Σ(a − r)²/Σr²)).
+fn diff(a: &[f64], r: &[f64]) -> (f64, f64) {
+    let max = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let worst = a
+        .iter()
+        .zip(r)
+        .filter(|(_, r)| r.abs() > 1e-6 * max)
+        .fold(0.0f64, |m, (a, r)| m.max((a - r).abs() / r.abs()));
+    let num: f64 = a.iter().zip(r).map(|(a, r)| (a - r).powi(2)).sum();
+    let den: f64 = r.iter().map(|r| r * r).sum();
+    (worst, if den > 0.0 { (num / den).sqrt() } else { 0.0 })
+}
+
+/// GPU vs CPU-f32 on every field of two solutions: (max relative, relative RMSE) over I, U,
+/// φ and the per-order fluences; the order counts, stops and tallies (10⁻⁵) agree.
+fn compare(what: &str, g: &LpmSolution<f64>, c: &LpmSolution<f64>) -> (f64, f64) {
+    assert_eq!(g.orders, c.orders, "{what}: orders");
+    assert_eq!(g.stop, c.stop, "{what}: stop");
+    assert_eq!(
+        g.phi_orders.len(),
+        c.phi_orders.len(),
+        "{what}: kept orders"
+    );
+    let mut fields: Vec<(&[f64], &[f64])> = vec![(&g.phi, &c.phi)];
+    for (a, b) in g.intensity.iter().zip(&c.intensity) {
+        fields.push((a, b));
+    }
+    for (a, b) in g.unshot.iter().zip(&c.unshot) {
+        fields.push((a, b));
+    }
+    for (a, b) in g.phi_orders.iter().zip(&c.phi_orders) {
+        fields.push((a, b));
+    }
+    let (mut worst, mut rmse) = (0.0f64, 0.0f64);
+    for (a, b) in fields {
+        let (w, r) = diff(a, b);
+        worst = worst.max(w);
+        rmse = rmse.max(r);
+    }
+    let mut tally: f64 = 0.0;
+    for (a, b) in g.tallies.iter().zip(&c.tallies) {
+        let scale = (b.injected + b.emitted).abs().max(1e-30);
+        for (x, y) in [
+            (a.injected, b.injected),
+            (a.emitted, b.emitted),
+            (a.exited, b.exited),
+            (a.absorbed, b.absorbed),
+            (a.scattered, b.scattered),
+        ] {
+            tally = tally.max((x - y).abs() / scale);
+        }
+    }
+    eprintln!(
+        "{what}: GPU vs CPU-f32 max rel {worst:.2e}, rel RMSE {rmse:.2e}, tallies {tally:.2e} ({} orders)",
+        g.orders
+    );
+    assert!(tally < 1e-5, "{what}: tallies differ by {tally:e}");
+    (worst, rmse)
+}
+
+fn gpu_run(
+    ctx: &GpuContext,
+    m: &Medium<f64>,
+    b: &BoundaryLight,
+    cfg: &LpmConfig,
+) -> LpmSolution<f64> {
+    solve(&Backend::Gpu(ctx), m, b, cfg, |_, _| {}).unwrap()
+}
+
+fn cpu_run(m: &Medium<f64>, b: &BoundaryLight, cfg: &LpmConfig) -> LpmSolution<f64> {
+    solve(&Backend::Cpu(Precision::F32), m, b, cfg, |_, _| {}).unwrap()
+}
+
+/// T18: GPU-f32 vs CPU-f32 on a 12×10×14 white-noise medium (vacuum voxels, σt·h to 3)
+/// under an environment plus a directional light, m = 5 (150 directions), 3 orders: every
+/// field (I, the six U, φ and the per-order φ) within the bounds below where the CPU value
+/// exceeds 10⁻⁶ of its maximum, and the per-order tallies within 10⁻⁵ of the input power.
+#[test]
+fn t18_gpu_matches_cpu_f32() {
+    with_gpu("t18_gpu_matches_cpu_f32", |ctx| {
+        let medium = random_medium([12, 10, 14], 21);
+        let b = lights(5);
+        let cfg = LpmConfig::default();
+        let (worst, rmse) = compare(
+            "T18",
+            &gpu_run(ctx, &medium, &b, &cfg),
+            &cpu_run(&medium, &b, &cfg),
+        );
+        assert!(worst < 1e-5 && rmse < 1e-6, "T18: {worst:e}, {rmse:e}");
+    });
+}
+
+/// T15: the class-slotted GPU form (per-ray sweep threads, per-voxel gather) is the CPU's
+/// Algorithm 2 form: for every wrap rule, the paper's area and path factors, Henyey–Greenstein
+/// with six I buffers and the relative stopping rule (the GPU stops at the CPU's order),
+/// on non-cubic grids, within the bounds below.
+#[test]
+fn t15_gpu_slotted_form_equals_cpu_alg2() {
+    with_gpu("t15_gpu_slotted_form_equals_cpu_alg2", |ctx| {
+        let medium = random_medium([9, 11, 8], 3);
+        let cases = [
+            (
+                "zero wrap m = 3",
+                3,
+                Phase::Isotropic,
+                WrapBc::Zero,
+                Formulas::exact(),
+            ),
+            (
+                "periodic m = 4",
+                4,
+                Phase::Isotropic,
+                WrapBc::Periodic,
+                Formulas::exact(),
+            ),
+            (
+                "face area, Δl/ω_z m = 3",
+                3,
+                Phase::Isotropic,
+                WrapBc::Open,
+                Formulas {
+                    area: Area::Face,
+                    path: PathLength::Paper,
+                    ..Formulas::exact()
+                },
+            ),
+            (
+                "HG g = 0.7, six I, m = 3",
+                3,
+                Phase::HenyeyGreenstein { g: 0.7 },
+                WrapBc::Open,
+                Formulas::exact(),
+            ),
+        ];
+        for (what, m, phase, wrap, formulas) in cases {
+            let cfg = LpmConfig {
+                m,
+                phase,
+                wrap,
+                formulas,
+                storage_i: if phase == Phase::Isotropic {
+                    StorageI::One
+                } else {
+                    StorageI::Six
+                },
+                orders: Orders::Converge {
+                    rel: 1e-4,
+                    max_orders: 60,
+                },
+                ..LpmConfig::default()
+            };
+            let b = lights(m);
+            let (worst, rmse) = compare(
+                &format!("T15 {what}"),
+                &gpu_run(ctx, &medium, &b, &cfg),
+                &cpu_run(&medium, &b, &cfg),
+            );
+            assert!(
+                worst < 1e-5 && rmse < 1e-6,
+                "T15 {what}: {worst:e}, {rmse:e}"
+            );
+        }
+    });
+}
+
+/// T18 (D17): five GPU solves, four on reused buffers and one on a fresh solver, are bitwise
+/// identical (I, U, φ, per-order φ and tallies).
+#[test]
+fn t18_gpu_runs_are_bitwise_identical() {
+    with_gpu("t18_gpu_runs_are_bitwise_identical", |ctx| {
+        let medium = random_medium([10, 12, 9], 8);
+        let b = lights(5);
+        let cfg = LpmConfig::default();
+        let mut solver = GpuLpm::new(ctx, &medium, &cfg).unwrap();
+        let first = solver.solve(&b, |_, _| {}).unwrap();
+        let mut runs: Vec<LpmSolution<f32>> = (0..3)
+            .map(|_| solver.solve(&b, |_, _| {}).unwrap())
+            .collect();
+        runs.push(
+            GpuLpm::new(ctx, &medium, &cfg)
+                .unwrap()
+                .solve(&b, |_, _| {})
+                .unwrap(),
+        );
+        for (k, r) in runs.iter().enumerate() {
+            assert_eq!(r.intensity, first.intensity, "run {k}: I");
+            assert_eq!(r.unshot, first.unshot, "run {k}: U");
+            assert_eq!(r.phi, first.phi, "run {k}: φ");
+            assert_eq!(r.phi_orders, first.phi_orders, "run {k}: per-order φ");
+            assert_eq!(r.tallies, first.tallies, "run {k}: tallies");
+        }
+        assert!(first.phi.iter().any(|x| *x > 0.0));
+    });
+}
+
+/// T7 on the GPU: the furnace (16³, α = 1, uniform L = 1, open wrap, orders to ε = 10⁻⁹)
+/// gives I = σs L within 10⁻⁴ for σt h ∈ {0.01, 0.1} and g ∈ {0, 0.9}.
+#[test]
+fn t7_furnace_on_gpu() {
+    with_gpu("t7_furnace_on_gpu", |ctx| {
+        let h = 1.0 / 16.0;
+        let dirs = Directions::new(5).unwrap();
+        let boundary = BoundaryLight::uniform(&dirs, 1.0);
+        for tau_h in [0.01, 0.1] {
+            for g in [0.0, 0.9] {
+                let medium =
+                    Medium::homogeneous(Grid::new([16; 3], h).unwrap(), tau_h / h, 1.0).unwrap();
+                let phase = if g == 0.0 {
+                    Phase::Isotropic
+                } else {
+                    Phase::HenyeyGreenstein { g }
+                };
+                let cfg = LpmConfig {
+                    phase,
+                    storage_i: if g == 0.0 {
+                        StorageI::One
+                    } else {
+                        StorageI::Six
+                    },
+                    orders: Orders::Converge {
+                        rel: 1e-9,
+                        max_orders: 400,
+                    },
+                    keep_orders: false,
+                    ..LpmConfig::default()
+                };
+                let s = gpu_run(ctx, &medium, &boundary, &cfg);
+                let want = tau_h / h;
+                let err = s
+                    .intensity
+                    .iter()
+                    .flat_map(|b| b.iter())
+                    .fold(0.0f64, |a, x| a.max((x / want - 1.0).abs()));
+                eprintln!(
+                    "T7 GPU σt·h = {tau_h} g = {g}: max |I/σsL − 1| = {err:.2e} ({} orders, {:?})",
+                    s.orders, s.stop
+                );
+                assert_eq!(s.stop, crate::method::Stop::Converged);
+                assert!(err < 1e-4, "σt·h = {tau_h} g = {g}: {err:e}");
+            }
+        }
+    });
+}
+
+/// T20 on the GPU: vacuum voxels, albedo 0, ½ and 1 and σt·h from 0 to 10³ in one 7×5×9 grid
+/// give finite, non-negative I and φ; albedo 0 leaves I = j/4π (10⁻⁶) and U¹ = 0; an all-zero
+/// medium gives I = 0; vacuum under L = 1 gives φ = 4π (10⁻⁶); bad input is a typed error
+/// (wrong boundary size, the paper's deposit, a T buffer beyond the device's binding limit).
+#[test]
+fn t20_hard_inputs_on_gpu() {
+    with_gpu("t20_hard_inputs_on_gpu", |ctx| {
+        let grid = Grid::new([7, 5, 9], 0.2).unwrap();
+        let nv = grid.len();
+        let levels = [0.0, 1e-9, 1e-3, 1.0, 50.0, 5e3];
+        let st: Vec<f64> = (0..nv).map(|v| levels[v % levels.len()]).collect();
+        let al: Vec<f64> = (0..nv).map(|v| [0.0, 0.5, 1.0][v % 3]).collect();
+        let em: Vec<f64> = (0..nv)
+            .map(|v| if v % 11 == 0 { 2.0 } else { 0.0 })
+            .collect();
+        let dirs = Directions::new(5).unwrap();
+        let b = BoundaryLight::uniform(&dirs, 1.0);
+        let cfg = LpmConfig::default();
+        let m = Medium::new(grid, st.clone(), al, em.clone()).unwrap();
+        let s = gpu_run(ctx, &m, &b, &cfg);
+        for buf in s.intensity.iter().chain(s.unshot.iter()).chain([&s.phi]) {
+            assert!(buf.iter().all(|x| x.is_finite() && *x >= 0.0), "bad value");
+        }
+        let m0 = Medium::new(grid, st, vec![0.0; nv], em.clone()).unwrap();
+        let s0 = gpu_run(ctx, &m0, &b, &cfg);
+        for v in 0..nv {
+            let want = em[v] / (4.0 * PI);
+            assert!(
+                (s0.intensity[0][v] - want).abs() <= 1e-6 * want,
+                "voxel {v}"
+            );
+        }
+        assert!(s0.unshot.iter().all(|u| u.iter().all(|x| *x == 0.0)));
+        let mz = Medium::homogeneous(grid, 0.0, 0.0).unwrap();
+        let sz = gpu_run(ctx, &mz, &BoundaryLight::none(&dirs), &cfg);
+        assert!(sz.intensity[0].iter().all(|x| *x == 0.0));
+        let sv = gpu_run(ctx, &mz, &b, &cfg);
+        let worst = sv
+            .phi
+            .iter()
+            .fold(0.0f64, |a, x| a.max((x / (4.0 * PI) - 1.0).abs()));
+        eprintln!("T20 GPU: vacuum fluence max |φ/4π − 1| = {worst:.2e}");
+        assert!(worst < 1e-6, "vacuum fluence {worst:e}");
+        // Typed errors.
+        let mut solver = GpuLpm::new(ctx, &m, &cfg).unwrap();
+        assert!(matches!(
+            solver.solve(
+                &BoundaryLight {
+                    radiance: vec![1.0; 3]
+                },
+                |_, _| {}
+            ),
+            Err(SolverError::FieldSize { .. })
+        ));
+        let paper = LpmConfig {
+            formulas: Formulas::paper(),
+            ..LpmConfig::default()
+        };
+        assert!(matches!(
+            GpuLpm::new(ctx, &m, &paper),
+            Err(SolverError::Unsupported(_))
+        ));
+        let big = Grid::cube(128, 1.0).unwrap();
+        let t_bytes = 25 * 3 * big.len() as u64 * 4;
+        if t_bytes > ctx.limits().max_storage_buffer_binding_size {
+            let hb = Medium::homogeneous(big, 1.0, 0.5).unwrap();
+            match GpuLpm::new(ctx, &hb, &cfg) {
+                Err(e) => {
+                    let msg = e.to_string();
+                    assert!(msg.contains("T buffer"), "{msg}");
+                }
+                Ok(_) => panic!("a {t_bytes}-byte T buffer was accepted"),
+            }
+        }
+    });
+}
