@@ -133,6 +133,7 @@ pub mod env;
 pub mod grid;
 pub mod kernel;
 pub mod method;
+pub mod residuum;
 #[cfg(test)]
 mod tests;
 
@@ -398,6 +399,9 @@ pub struct PopConfig {
     pub tolerance: f64,
     /// Iteration cap M.
     pub max_iterations: usize,
+    /// The isotropic residuum (Sec 5.4), default off; only [`residuum::solve`] honours it
+    /// ([`solve`] refuses a config that asks for it).
+    pub residuum: residuum::Residuum,
 }
 
 impl PopConfig {
@@ -412,6 +416,7 @@ impl PopConfig {
             observer: None,
             tolerance: T::DEFAULT_TOLERANCE,
             max_iterations: 100_000,
+            residuum: residuum::Residuum::Off,
         }
     }
 
@@ -542,6 +547,7 @@ pub fn solve<T: Real>(
         o.validate()?;
     }
     config.validate::<T>(ordinates.len(), medium.channels())?;
+    residuum::refuse(config)?;
     let runs = ordinates
         .par_iter()
         .map(|o| run_ordinate::<T>(medium, o, config))
