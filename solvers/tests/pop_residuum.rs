@@ -12,7 +12,7 @@
 
 #![allow(clippy::unwrap_used)]
 
-use solvers::pop::residuum::{self, IsoResiduum, Residuum, ResiduumSolution, Switch};
+use solvers::pop::residuum::{self, IsoResiduum, Residuum, ResiduumSolution};
 use solvers::pop::{
     CpuPop, Observer, Ordinate, PopConfig, PopMedium, Prefilter, PropagationGrid,
     environment_ordinates,

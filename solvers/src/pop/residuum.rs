@@ -164,7 +164,7 @@ pub struct SwitchIteration {
 /// ⌈raw⌉ clamped to [n_d, m_max] (n_d ≤ m_max assumed; m_max wins otherwise).
 pub fn clamp_switch(raw: f64, n_d: usize, m_max: usize) -> (usize, Clamp) {
     let lo = n_d.min(m_max);
-    if !(raw.ceil() <= m_max as f64) {
+    if raw.is_nan() || raw.ceil() > m_max as f64 {
         (m_max, Clamp::High)
     } else if raw.ceil() < lo as f64 {
         (lo, Clamp::Low)
@@ -489,8 +489,8 @@ pub fn solve<T: Real>(
     let mut any = false;
     let mut runs = Vec::with_capacity(parts.len());
     for (run, splat) in parts {
-        for ch in 0..nc {
-            injected[ch] += run.ledger[ch].injected;
+        for (inj, l) in injected.iter_mut().zip(&run.ledger) {
+            *inj += l.injected;
         }
         if run.stop != Stop::Converged {
             any = true;
