@@ -99,8 +99,11 @@ fn pt_exits(t: &CurrentTally) -> [Estimate; 3] {
     ]
 }
 
-/// The comparison at one g: (volume-mean φ POP / PT, probe ⟨μ⟩ POP − PT, exits).
-fn compare(g: f64, paths: u64) -> (f64, Estimate, Vec<(f64, Estimate)>, [f64; 3], [Estimate; 3]) {
+/// (φ ratio POP/PT, PT volume-mean φ, per probe (POP ⟨μ⟩, PT ⟨μ⟩), POP exits, PT exits).
+type Comparison = (f64, Estimate, Vec<(f64, Estimate)>, [f64; 3], [Estimate; 3]);
+
+/// The comparison at one g.
+fn compare(g: f64, paths: u64) -> Comparison {
     let grid = Grid::cube(N, 1.0).unwrap();
     let p = pop_cube(g);
     let t = pt_cube(g, paths);
