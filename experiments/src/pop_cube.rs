@@ -571,7 +571,7 @@ impl Experiment for PopCube {
                 "R POP / PT",
                 "T POP / PT",
                 "sides POP / PT",
-                "max |Δ⟨μ⟩|",
+                "largest Δ⟨μ⟩ (abs.)",
             ],
             rows,
         ));
