@@ -322,6 +322,9 @@ pub static EXPERIMENTS: &[ExperimentEntry] = &[
     ExperimentEntry::of::<crate::rde_steady::RdeSteady>(),
     ExperimentEntry::of::<crate::rde_controls::RdeControls>(),
     ExperimentEntry::of::<crate::mitsuba_compare::MitsubaCompare>(),
+    ExperimentEntry::of::<crate::pop_cube::PopCube>(),
+    ExperimentEntry::of::<crate::pop_convergence::PopConvergence>(),
+    ExperimentEntry::of::<crate::pop_residuum::PopResiduum>(),
 ];
 
 /// The registered experiment called `name`.

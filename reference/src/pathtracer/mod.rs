@@ -29,6 +29,7 @@
 
 pub mod camera;
 pub mod contributions;
+pub mod current;
 pub mod estimators;
 pub mod fluence;
 pub mod infinite;

@@ -1,0 +1,2 @@
+//! Binary of [`experiments::pop_convergence`].
+experiments::experiment_main!(experiments::pop_convergence::PopConvergence);

@@ -1,0 +1,2 @@
+//! Binary of [`experiments::pop_cube`].
+experiments::experiment_main!(experiments::pop_cube::PopCube);
