@@ -65,11 +65,11 @@ impl Plan {
                 t9_n: 16,
                 t9_m: vec![3, 5, 7, 9],
                 slab: vec![
-                    (0.5, 3, 4, WrapBc::Open),
-                    (0.5, 5, 4, WrapBc::Open),
-                    (0.5, 7, 4, WrapBc::Open),
-                    (0.5, 9, 4, WrapBc::Open),
+                    (0.5, 3, 8, WrapBc::Open),
                     (0.5, 5, 8, WrapBc::Open),
+                    (0.5, 7, 8, WrapBc::Open),
+                    (0.5, 9, 8, WrapBc::Open),
+                    (0.5, 5, 4, WrapBc::Open),
                     (0.5, 5, 16, WrapBc::Open),
                     (0.5, 5, 4, WrapBc::Periodic),
                     (0.9, 3, 4, WrapBc::Open),
@@ -230,7 +230,12 @@ fn plots(
         ],
     )?;
     let open: Vec<&SlabRow> = slab.iter().filter(|r| r.wrap == "open").collect();
-    let nz_mid = open.iter().map(|r| r.nz).min().unwrap_or(0);
+    // The n_z with the most m values.
+    let nz_mid = open
+        .iter()
+        .map(|r| r.nz)
+        .max_by_key(|&nz| open.iter().filter(|r| r.nz == nz).count())
+        .unwrap_or(0);
     let mut s_m = Vec::new();
     let mut s_nz = Vec::new();
     let albedos: Vec<f64> = {
