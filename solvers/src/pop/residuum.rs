@@ -462,10 +462,7 @@ pub fn solve<T: Real>(
     let parts: Vec<(OrdinateRun<T>, Vec<f64>)> = ordinates
         .par_iter()
         .map(|o| {
-            let grid = PropagationGrid::over(&medium.grid, o.direction, config.n);
-            let mip = box_filter(medium, mip_level(&medium.grid, grid.dx));
-            let mut pop = CpuPop::<T>::new(grid, &mip, &medium.g, &capped);
-            pop.inject(o, capped.init);
+            let (grid, mut pop) = super::prepare::<T>(medium, o, &capped);
             let stop = pop.run(capped.tolerance, capped.max_iterations);
             let mut splat = vec![0.0; iso_grid.len() * nc];
             if stop != Stop::Converged {
@@ -477,6 +474,7 @@ pub fn solve<T: Real>(
                 channels: nc,
                 ledger: pop.ledger().to_vec(),
                 history: pop.history().to_vec(),
+                history_steps: (1..=pop.history().len()).collect(),
                 steps: pop.steps(),
                 stop,
                 acc: pop.accumulators().to_vec(),
