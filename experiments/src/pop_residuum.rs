@@ -102,30 +102,8 @@ pub fn run(args: &Args) -> Result<Vec<ResiduumRow>> {
     crate::experiment::run::<PopResiduum>(args)
 }
 
-fn l_acc(sol: &ResiduumSolution<f64>, grid: &Grid) -> Vec<f64> {
-    (0..grid.len())
-        .map(|v| {
-            let [i, j, k] = grid.coords(v);
-            let p = grid.center(i, j, k);
-            let aniso: f64 = sol
-                .anisotropic
-                .runs
-                .iter()
-                .map(|r| {
-                    r.grid
-                        .interpolate_with(&r.acc, solvers::pop::cpu::ACC, 2, p)
-                })
-                .sum();
-            let iso = sol.iso.as_ref().map_or(0.0, |iso| {
-                iso.grid.gather_with(&iso.acc, residuum::ISO_ACC, 1, p)
-            });
-            aniso + iso
-        })
-        .collect()
-}
-
 fn image(sol: &ResiduumSolution<f64>, grid: &Grid, sigma_s: f64, sigma_t: f64) -> Vec<f64> {
-    let l = l_acc(sol, grid);
+    let l = sol.l_acc_on(grid);
     let [nx, ny, nz] = grid.n;
     let top = grid.origin[2] + grid.size()[2];
     let mut img = vec![0.0; nx * ny];

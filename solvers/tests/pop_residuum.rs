@@ -40,31 +40,8 @@ fn config(res: Residuum) -> PopConfig {
     }
 }
 
-/// L_acc (Eq 8) on the medium grid: every ordinate grid's gather plus the isotropic grid's.
-fn l_acc(sol: &ResiduumSolution<f64>, grid: &Grid) -> Vec<f64> {
-    (0..grid.len())
-        .map(|v| {
-            let [i, j, k] = grid.coords(v);
-            let p = grid.center(i, j, k);
-            let aniso: f64 = sol
-                .anisotropic
-                .runs
-                .iter()
-                .map(|r| {
-                    r.grid
-                        .interpolate_with(&r.acc, solvers::pop::cpu::ACC, 2, p)
-                })
-                .sum();
-            let iso = sol.iso.as_ref().map_or(0.0, |iso| {
-                iso.grid.gather_with(&iso.acc, residuum::ISO_ACC, 1, p)
-            });
-            aniso + iso
-        })
-        .collect()
-}
-
 fn image(sol: &ResiduumSolution<f64>, grid: &Grid) -> Vec<f64> {
-    let l = l_acc(sol, grid);
+    let l = sol.l_acc_on(grid);
     let sigma_t = SIGMA_S / ALBEDO;
     let mut img = vec![0.0; N * N];
     for k in 0..N {

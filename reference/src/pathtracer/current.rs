@@ -19,17 +19,14 @@
 
 use super::TraceOptions;
 use super::estimators::{Estimate, batch_sizes, check_batches};
-use super::fluence::{Field, PathSettings};
+use super::fluence::{Field, PathSettings, scatter};
 use super::math::at;
-use super::phase::sample_dir;
 use super::rng::Rng;
 use super::world::{Event, Sources, World};
 use crate::ReferenceError;
 use rayon::prelude::*;
 use solvers::Grid;
 use solvers::scene::Scene;
-
-const ROULETTE: f64 = 0.1;
 
 /// The faces of the box, in the order of [`CurrentTally::exits`].
 pub const FACES: [&str; 6] = ["-x", "+x", "-y", "+y", "-z", "+z"];
@@ -251,22 +248,19 @@ fn trace(
             }
             return;
         };
-        if settings.max_depth.is_some_and(|m| depth >= m) {
-            return;
-        }
         let x = at(o, d, tc);
-        weight *= volume.albedo(x);
-        if weight <= 0.0 {
+        if !scatter(
+            world,
+            settings,
+            p0,
+            x,
+            &mut weight,
+            &mut depth,
+            &mut d,
+            &mut rng,
+        ) {
             return;
         }
-        if weight < ROULETTE * p0 {
-            if rng.uniform() * ROULETTE * p0 >= weight {
-                return;
-            }
-            weight = ROULETTE * p0;
-        }
-        depth += 1;
-        d = sample_dir(&world.phase, d, rng.uniform(), rng.uniform());
         o = x;
     }
 }

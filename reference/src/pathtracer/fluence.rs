@@ -22,7 +22,7 @@
 
 use super::TraceOptions;
 use super::estimators::{BatchMeans, batch_sizes, check_batches};
-use super::math::at;
+use super::math::{Vec3, at};
 use super::phase::sample_dir;
 use super::rng::Rng;
 use super::world::{Event, Sources, World};
@@ -181,22 +181,52 @@ fn trace(
         let Event::Collision(t) = event else {
             return;
         };
-        if settings.max_depth.is_some_and(|m| depth >= m) {
-            return;
-        }
         let x = at(o, d, t);
-        weight *= volume.albedo(x);
-        if weight <= 0.0 {
+        if !scatter(
+            world,
+            settings,
+            p0,
+            x,
+            &mut weight,
+            &mut depth,
+            &mut d,
+            &mut rng,
+        ) {
             return;
         }
-        if weight < ROULETTE * p0 {
-            if rng.uniform() * ROULETTE * p0 >= weight {
-                return;
-            }
-            weight = ROULETTE * p0;
-        }
-        depth += 1;
-        d = sample_dir(&world.phase, d, rng.uniform(), rng.uniform());
         o = x;
     }
+}
+
+/// A real collision at `x` of a particle history that started with weight `p0`: the depth
+/// cap, the albedo, Russian roulette below `ROULETTE`·p0 and a phase-sampled new direction
+/// `d` (the fluence and current tallies share it). Returns false when the history ends.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub(crate) fn scatter(
+    world: &World,
+    settings: &PathSettings,
+    p0: f64,
+    x: Vec3,
+    weight: &mut f64,
+    depth: &mut u32,
+    d: &mut Vec3,
+    rng: &mut Rng,
+) -> bool {
+    if settings.max_depth.is_some_and(|m| *depth >= m) {
+        return false;
+    }
+    *weight *= world.volume().albedo(x);
+    if *weight <= 0.0 {
+        return false;
+    }
+    if *weight < ROULETTE * p0 {
+        if rng.uniform() * ROULETTE * p0 >= *weight {
+            return false;
+        }
+        *weight = ROULETTE * p0;
+    }
+    *depth += 1;
+    *d = sample_dir(&world.phase, *d, rng.uniform(), rng.uniform());
+    true
 }

@@ -621,6 +621,17 @@ pub(crate) fn validate_solve<T: Real>(
     ordinates: &[Ordinate],
     config: &PopConfig,
 ) -> Result<(), SolverError> {
+    validate_inputs::<T>(medium, ordinates, config)?;
+    // The residuum runs through `residuum::solve` only (CPU), never here or on the GPU.
+    residuum::refuse(config)
+}
+
+/// The medium, the ordinates and the config (every POP solve, the residuum's included).
+pub(crate) fn validate_inputs<T: Real>(
+    medium: &PopMedium,
+    ordinates: &[Ordinate],
+    config: &PopConfig,
+) -> Result<(), SolverError> {
     medium.validate()?;
     if ordinates.is_empty() {
         return Err(SolverError::BadParameter {
@@ -632,9 +643,7 @@ pub(crate) fn validate_solve<T: Real>(
     for o in ordinates {
         o.validate()?;
     }
-    config.validate::<T>(ordinates.len(), medium.channels())?;
-    // The residuum runs through `residuum::solve` only (CPU), never here or on the GPU.
-    residuum::refuse(config)
+    config.validate::<T>(ordinates.len(), medium.channels())
 }
 
 /// One ordinate's grid (D2–D3) and its state with the medium at the MIP level of D4,

@@ -351,6 +351,28 @@ pub struct ResiduumSolution<T> {
 }
 
 impl<T: Real> ResiduumSolution<T> {
+    /// L_acc of POP Eq 8 (channel 0) at the voxel centres of `target`: every ordinate
+    /// grid's trilinear gather plus the isotropic grid's.
+    pub fn l_acc_on(&self, target: &Grid) -> Vec<f64> {
+        (0..target.len())
+            .map(|v| {
+                let [i, j, k] = target.coords(v);
+                let p = target.center(i, j, k);
+                let aniso: f64 = self
+                    .anisotropic
+                    .runs
+                    .iter()
+                    .map(|r| r.grid.interpolate_with(&r.acc, super::cpu::ACC, 2, p))
+                    .sum();
+                let iso = self
+                    .iso
+                    .as_ref()
+                    .map_or(0.0, |iso| iso.grid.gather_with(&iso.acc, ISO_ACC, 1, p));
+                aniso + iso
+            })
+            .collect()
+    }
+
     /// Fluence per channel on `target`: the ordinate grids' gather plus the isotropic
     /// grid's trilinear gather at the voxel centres.
     pub fn fluence_on(&self, target: &Grid) -> Vec<Vec<f64>> {
@@ -435,18 +457,7 @@ pub fn solve<T: Real>(
         });
     };
     res.validate()?;
-    medium.validate()?;
-    if ordinates.is_empty() {
-        return Err(SolverError::BadParameter {
-            name: "ordinates",
-            value: 0.0,
-            reason: "POP needs at least one ordinate (a light)",
-        });
-    }
-    for o in ordinates {
-        o.validate()?;
-    }
-    config.validate::<T>(ordinates.len(), medium.channels())?;
+    super::validate_inputs::<T>(medium, ordinates, config)?;
     let cells = config.n.saturating_mul(res.factor);
     crate::budget::check(
         format!("POP isotropic residuum: {cells} cells per axis"),
