@@ -223,8 +223,9 @@ impl<T: Real, E> Solution<T, E> {
     }
 }
 
-/// The CPU precision a CPU-only method (LPM, POP) runs `backend` in, or a typed
-/// [`SolverError::Unsupported`] naming `name` on the GPU.
+/// The CPU precision a CPU-only method or variant (today `lpm:paper`, whose deposit has no
+/// GPU kernel) runs `backend` in, or a typed [`SolverError::Unsupported`] naming `name` on
+/// the GPU.
 pub fn cpu_precision(name: &str, backend: &Backend<'_>) -> Result<Precision, SolverError> {
     match backend {
         Backend::Cpu(p) => Ok(*p),

@@ -6,9 +6,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::needless_range_loop)]
 
 use super::directions::Directions;
+use super::tests::random_medium;
 use super::*;
 use crate::gpu::GpuContext;
-use crate::noise::SplitMix64;
 use crate::{Backend, Grid, Medium, Precision};
 use std::f64::consts::PI;
 use std::sync::{Mutex, OnceLock};
@@ -30,27 +30,6 @@ fn with_gpu(test: &str, body: impl FnOnce(&GpuContext)) {
             body(&ctx);
         }
     }
-}
-
-/// White-noise medium as `tests::random_medium`: σt·h in [0, 3) with 20 % vacuum, albedo
-/// in [0, 1], emission in 5 % of the voxels.
-fn random_medium(n: [usize; 3], seed: u64) -> Medium<f64> {
-    let grid = Grid::new(n, 0.1).unwrap();
-    let mut rng = SplitMix64::new(seed);
-    let nv = grid.len();
-    let (mut st, mut al, mut em) = (vec![0.0; nv], vec![0.0; nv], vec![0.0; nv]);
-    for v in 0..nv {
-        st[v] = if rng.next_f64() < 0.2 {
-            0.0
-        } else {
-            30.0 * rng.next_f64()
-        };
-        al[v] = rng.next_f64();
-        if rng.next_f64() < 0.05 {
-            em[v] = 1.0 + rng.next_f64();
-        }
-    }
-    Medium::new(grid, st, al, em).unwrap()
 }
 
 /// An environment of radiance 1 plus a directional light of irradiance 2.

@@ -18,7 +18,7 @@ fn homogeneous(n: [usize; 3], dl: f64, sigma_t: f64, albedo: f64) -> Medium<f64>
 
 /// White-noise medium: σt·h in [0, 3) with 20 % vacuum, albedo in [0, 1], emission in 5 %
 /// of the voxels.
-fn random_medium(n: [usize; 3], seed: u64) -> Medium<f64> {
+pub(super) fn random_medium(n: [usize; 3], seed: u64) -> Medium<f64> {
     let grid = Grid::new(n, 0.1).unwrap();
     let mut rng = SplitMix64::new(seed);
     let nv = grid.len();
