@@ -12,7 +12,9 @@
 //! Errors (in `runs.csv` and `results/README.md`): relative L2 error of φ against Grosjean
 //! over all voxels with 0 < τ < 1 ("near the source"), and over the +x profile up to τ = 1.5.
 
-use crate::common::{BackendArgs, CommonArgs, Ctx, PrecisionArg, list_item, progress, value_names};
+use crate::common::{
+    BackendArgs, BackendChoice, CommonArgs, Ctx, PrecisionArg, list_item, progress, value_names,
+};
 use crate::experiment::{BackendSupport, Experiment, FigureRun, Promise};
 use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Row, Section, table};
@@ -61,9 +63,34 @@ pub struct Args {
     /// Tolerance on R̄/j̄ (default 1e-6 in f64, 1e-4 in f32).
     #[arg(long)]
     pub tolerance: Option<f64>,
-    /// Iteration cap per solve.
+    /// Iteration cap per solve (multigrid: cycles).
     #[arg(long, default_value_t = 20_000, value_parser = crate::common::count_usize)]
     pub max_iterations: usize,
+    /// Solvers, each run on every case: `sor` (red-black SOR, FLD Algorithm 1, the
+    /// reference) and/or `multigrid` (FAS V(2,2), `solvers::fld::multigrid`, CPU only).
+    /// The plots and the error tables use the first; `rel_l2_vs_first_solver` in `runs.csv`
+    /// compares the others with it.
+    #[arg(long, value_delimiter = ',', value_enum, default_value = "sor")]
+    pub solver: Vec<SolverArg>,
+}
+
+/// A `--solver` value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum SolverArg {
+    /// Red-black SOR (FLD Algorithm 1).
+    Sor,
+    /// FAS multigrid, V(2,2) cycles (CPU only).
+    Multigrid,
+}
+
+impl SolverArg {
+    /// The solver with default settings.
+    pub fn solver(self) -> fld::Solver {
+        match self {
+            Self::Sor => fld::Solver::Sor,
+            Self::Multigrid => fld::Solver::Multigrid(fld::multigrid::MgConfig::default()),
+        }
+    }
 }
 
 /// A `--boundary` value.
@@ -114,6 +141,7 @@ struct ProfileRow {
     knudsen: &'static str,
     precision: &'static str,
     backend: &'static str,
+    solver: &'static str,
 }
 
 /// Analytic curves (`analytic.csv`).
@@ -145,12 +173,19 @@ pub struct RunRow {
     pub precision: &'static str,
     /// `cpu` or `gpu`.
     pub backend: &'static str,
-    /// SOR factor used.
+    /// `sor` or `multigrid`.
+    pub solver: &'static str,
+    /// SOR factor used (multigrid smooths with ω = 1).
     pub omega: f64,
-    /// Iterations run.
+    /// Iterations run (multigrid: cycles).
     pub iterations: usize,
+    /// Work in fine red-black sweeps (SOR: the iterations; multigrid: smoothing sweeps,
+    /// level ℓ counting 8^(−ℓ); transfers and residuals uncounted, see `seconds`).
+    pub work_units: f64,
     /// Whether R̄/j̄ reached the tolerance.
     pub converged: bool,
+    /// Why the solve stopped: `converged`, `cap`, `stalled` or `non_finite`.
+    pub stop: String,
     /// Final R̄/j̄.
     pub residual: f64,
     /// Seconds of the solve (GPU: timestamp queries where available, see `timer`).
@@ -163,6 +198,9 @@ pub struct RunRow {
     pub err_grosjean_profile: f64,
     /// Relative L2 error against FLD Eq 27 over voxels with 0 < τ < 1.
     pub err_cda_near: f64,
+    /// Relative L2 difference of φ (all voxels) from the first `--solver`'s φ of the same
+    /// case and backend (0 for the first solver itself).
+    pub rel_l2_vs_first_solver: f64,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -202,6 +240,18 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
         bail!("--albedo: {a} is outside [0, 1]");
     }
     let limiters = limiter_list(&args.limiter)?;
+    let mut solvers: Vec<SolverArg> = Vec::new();
+    for &sv in &args.solver {
+        if !solvers.contains(&sv) {
+            solvers.push(sv);
+        }
+    }
+    if solvers.contains(&SolverArg::Multigrid) && args.backend.backend != BackendChoice::Cpu {
+        bail!(
+            "--solver multigrid runs on the CPU only (GPU multigrid is not implemented); \
+             use --backend cpu"
+        );
+    }
     let boundaries: Vec<&'static str> = if args.boundary.contains(&BoundaryArg::Auto) {
         vec![]
     } else {
@@ -254,20 +304,24 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
     });
     let steps = crate::cost::solve_steps(n, rel, args.max_iterations);
     let mut work = crate::cost::Estimate::new();
+    // Multigrid is costed by the SOR estimate too (an upper bound: it is the reference's
+    // cost, and multigrid stops in far fewer fine sweeps where it converges).
     work.add(
         format!(
-            "{} cases × {steps:.0} iterations (--max-iterations {}, tolerance {rel:e}) × {n}³ \
-             voxels",
+            "{} cases × {} solvers × {steps:.0} iterations (--max-iterations {}, tolerance \
+             {rel:e}) × {n}³ voxels",
             cases.len(),
+            solvers.len(),
             args.max_iterations
         ),
-        cases.len() as f64 * steps * (n as f64).powi(3),
+        (cases.len() * solvers.len()) as f64 * steps * (n as f64).powi(3),
     );
     ctx.work(&work)?;
     let params = serde_json::json!({
         "n": n, "tau_extent": args.tau_extent, "albedo": albedos, "limiters": limiters.iter().map(|l| l.to_string()).collect::<Vec<_>>(),
         "boundary": value_names(&args.boundary), "effective_albedo": args.effective_albedo, "precision": args.precision.name(),
         "omega": args.omega.unwrap_or(FldConfig::poisson_optimal_omega(n)), "tolerance": args.tolerance, "max_iterations": args.max_iterations,
+        "solver": value_names(&solvers),
     });
     let precision: Precision = args.precision.precision();
     let backends = args.backend.open()?;
@@ -276,7 +330,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
     out.record("backends", backends.meta());
     let list = backends.list(precision);
     let pb = progress(
-        (cases.len() * list.len()) as u64,
+        (cases.len() * list.len() * solvers.len()) as u64,
         &args.common,
         "point source",
     );
@@ -284,24 +338,36 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
     let mut runs = Vec::new();
     for case in &cases {
         for backend in &list {
-            pb.set_message(format!(
-                "{} {} α={} {backend}",
-                case.limiter, case.boundary, case.albedo
-            ));
-            let (run, prof) = solve_case(args, n, case, backend, &pb)?;
-            out.timing(
-                format!(
-                    "{} {} {} α={} {backend}",
+            let mut first: Option<Vec<f64>> = None;
+            for &sv in &solvers {
+                pb.set_message(format!(
+                    "{} {} α={} {backend} {}",
                     case.limiter,
                     case.boundary,
-                    knudsen_name(case.knudsen),
-                    case.albedo
-                ),
-                run.seconds,
-            );
-            runs.push(run);
-            profiles.extend(prof);
-            pb.inc(1);
+                    case.albedo,
+                    sv.solver().name()
+                ));
+                let (mut run, prof, phi) = solve_case(args, n, case, backend, sv, &pb)?;
+                run.rel_l2_vs_first_solver = match &first {
+                    Some(f) => rel_l2(&phi, f),
+                    None => 0.0,
+                };
+                first.get_or_insert(phi);
+                out.timing(
+                    format!(
+                        "{} {} {} α={} {backend} {}",
+                        case.limiter,
+                        case.boundary,
+                        knudsen_name(case.knudsen),
+                        case.albedo,
+                        run.solver
+                    ),
+                    run.seconds,
+                );
+                runs.push(run);
+                profiles.extend(prof);
+                pb.inc(1);
+            }
         }
     }
     pb.finish_and_clear();
@@ -324,10 +390,19 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
         })
         .collect();
     out.csv("analytic.csv", &analytic)?;
+    // The plots show the first solver (the others reach the same φ; see
+    // `rel_l2_vs_first_solver`).
+    let plotted = solvers[0].solver().name();
     for backend in &list {
         let kind = backend.kind();
-        let prof: Vec<&ProfileRow> = profiles.iter().filter(|p| p.backend == kind).collect();
-        let rs: Vec<&RunRow> = runs.iter().filter(|r| r.backend == kind).collect();
+        let prof: Vec<&ProfileRow> = profiles
+            .iter()
+            .filter(|p| p.backend == kind && p.solver == plotted)
+            .collect();
+        let rs: Vec<&RunRow> = runs
+            .iter()
+            .filter(|r| r.backend == kind && r.solver == plotted)
+            .collect();
         let suffix = backends.plot_suffix(kind);
         let label = format!("{n}³, {backend}");
         plots(out, &albedos, &limiters, &prof, &rs, &taus, &label, suffix)?;
@@ -335,13 +410,29 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
     Ok(runs)
 }
 
+/// Relative L2 difference ‖a − b‖/‖b‖ (0 when both vanish).
+fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
+    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+    let den: f64 = b.iter().map(|y| y * y).sum();
+    if den > 0.0 {
+        (num / den).sqrt()
+    } else if num > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    }
+}
+
+/// One solve: its `runs.csv` row, its +x profile and φ.
 fn solve_case(
     args: &Args,
     n: usize,
     case: &Case,
     backend: &Backend<'_>,
+    solver: SolverArg,
     pb: &indicatif::ProgressBar,
-) -> Result<(RunRow, Vec<ProfileRow>)> {
+) -> Result<(RunRow, Vec<ProfileRow>, Vec<f64>)> {
+    let solver = solver.solver();
     let (medium, src) = scenes::point_source::<f64>(n, args.tau_extent, case.albedo)
         .context("building the point-source medium")?;
     let g = medium.grid;
@@ -371,18 +462,29 @@ fn solve_case(
         knudsen: case.knudsen,
         ..FldConfig::default()
     };
-    let sol = fld::solve(backend, &medium, &boundary, &cfg, |it, r| {
-        if it % 25 == 0 {
+    let every = if matches!(solver, fld::Solver::Sor) {
+        25
+    } else {
+        1
+    };
+    let sol = fld::solve_with(backend, &medium, &boundary, &cfg, &solver, |it, r| {
+        if it % every == 0 {
             pb.set_message(format!(
-                "{} {} α={} {backend} it {it} R̄/j̄ {r:.2e}",
-                case.limiter, case.boundary, case.albedo
+                "{} {} α={} {backend} {} it {it} R̄/j̄ {r:.2e}",
+                case.limiter,
+                case.boundary,
+                case.albedo,
+                solver.name()
             ));
         }
     })
     .with_context(|| {
         format!(
-            "solving {} {} α={} on {backend}",
-            case.limiter, case.boundary, case.albedo
+            "solving {} {} α={} on {backend} with {}",
+            case.limiter,
+            case.boundary,
+            case.albedo,
+            solver.name()
         )
     })?;
     let phi = &sol.phi;
@@ -431,6 +533,7 @@ fn solve_case(
             knudsen: knudsen_name(case.knudsen),
             precision: backend.precision().name(),
             backend: backend.kind(),
+            solver: solver.name(),
         });
     }
     let run = RunRow {
@@ -442,17 +545,25 @@ fn solve_case(
         n,
         precision: backend.precision().name(),
         backend: backend.kind(),
-        omega,
+        solver: solver.name(),
+        omega: if matches!(solver, fld::Solver::Sor) {
+            omega
+        } else {
+            1.0
+        },
         iterations: sol.steps,
+        work_units: sol.trace.work_units,
         converged: sol.converged(),
+        stop: sol.stop.to_string(),
         residual: sol.final_residual(),
         seconds: sol.seconds,
         timer: sol.timer.to_string(),
         err_grosjean_near: (ng / dg).sqrt(),
         err_grosjean_profile: (np / dp).sqrt(),
         err_cda_near: (nc / dc).sqrt(),
+        rel_l2_vs_first_solver: 0.0,
     };
-    Ok((run, profile))
+    Ok((run, profile, sol.phi))
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -648,15 +759,19 @@ impl Experiment for PointSource {
                     "n",
                     "precision",
                     "backend",
+                    "solver",
                     "omega",
                     "iterations",
+                    "work_units",
                     "converged",
+                    "stop",
                     "residual",
                     "seconds",
                     "timer",
                     "err_grosjean_near",
                     "err_grosjean_profile",
                     "err_cda_near",
+                    "rel_l2_vs_first_solver",
                 ],
             ),
             Promise::csv(
@@ -733,22 +848,88 @@ impl Experiment for PointSource {
             .map(|r| r.get("n").to_string())
             .unwrap_or_default();
         let limiters = t.distinct("limiter");
-        let find = |lim: &str, b: &str, k: &str, a: &str| {
+        // The tables read the first backend and the first solver (older runs.csv files have
+        // no `solver` column: "" everywhere).
+        let solvers = t.distinct("solver");
+        let find_with = |lim: &str, b: &str, k: &str, a: &str, solver: &str| {
             t.rows().find(|r| {
                 r.get("limiter") == lim
                     && r.get("boundary") == b
                     && r.get("knudsen") == k
                     && r.get("albedo") == a
                     && r.get("backend") == t.rows().next().map_or("", |f| f.get("backend"))
+                    && r.get("solver") == solver
             })
         };
+        let first_solver = solvers.first().cloned().unwrap_or_default();
+        let find = |lim: &str, b: &str, k: &str, a: &str| find_with(lim, b, k, a, &first_solver);
         let cell = |r: Option<Row<'_>>, col: &str| r.map_or("–".to_string(), |r| r.fixed(col, 4));
+        let solver_text = if first_solver == "multigrid" {
+            "FAS multigrid, V(2,2) cycles (`solvers::fld::multigrid`)"
+        } else {
+            "red-black SOR at ω = 2/(1 + sin(π/n))"
+        };
         let _ = writeln!(
             out,
             "{n}³ voxels, τ = 4 across, one emitting voxel. Relative L2 error of φ over all voxels with \
              0 < τ < 1, against Grosjean (FLD Eq 24) and, for CDA, against its own theory (FLD Eq 27). \
-             Solver: red-black SOR at ω = 2/(1 + sin(π/n)) (see `omega` and `residual` in `runs.csv`).\n"
+             Solver: {solver_text} (see `solver`, `omega` and `residual` in `runs.csv`).\n"
         );
+        if solvers.iter().any(|x| x == "sor") && solvers.iter().any(|x| x == "multigrid") {
+            let _ = writeln!(
+                out,
+                "Time to solution, red-black SOR against FAS multigrid (V(2,2)), same run, same \
+                 tolerance on R̄/j̄. Work units: fine red-black sweeps (multigrid's coarse sweeps \
+                 count 8^(−level)). Difference: relative L2 of φ, multigrid against SOR.\n"
+            );
+            let mut rows = Vec::new();
+            for r in t.rows().filter(|r| r.get("solver") == "sor") {
+                let (lim, b, k, a) = (
+                    r.get("limiter"),
+                    r.get("boundary"),
+                    r.get("knudsen"),
+                    r.get("albedo"),
+                );
+                let Some(m) = find_with(lim, b, k, a, "multigrid") else {
+                    continue;
+                };
+                let stop = |x: Row<'_>| {
+                    if x.flag("converged") {
+                        String::new()
+                    } else {
+                        format!(" ({})", x.get("stop"))
+                    }
+                };
+                rows.push(vec![
+                    format!("{lim}, {b} boundary, α = {a}"),
+                    format!("{}{}", r.get("iterations"), stop(r)),
+                    r.fixed("seconds", 2),
+                    format!("{}{}", m.get("iterations"), stop(m)),
+                    m.fixed("work_units", 1),
+                    m.fixed("seconds", 2),
+                    crate::report::fixed(r.num("seconds") / m.num("seconds"), 1),
+                    format!(
+                        "{:.1e}",
+                        m.num("rel_l2_vs_first_solver")
+                            .max(r.num("rel_l2_vs_first_solver"))
+                    ),
+                ]);
+            }
+            out.push_str(&table(
+                &[
+                    "case",
+                    "SOR iterations",
+                    "SOR (s)",
+                    "multigrid cycles",
+                    "multigrid work units",
+                    "multigrid (s)",
+                    "speed-up (SOR s / multigrid s)",
+                    "difference",
+                ],
+                rows,
+            ));
+            out.push('\n');
+        }
         // Fig 5 (a, b, c) needs CDA with both boundaries and FLD-LP; the limiter runs have no
         // analytic boundary.
         let fig5 = t.rows().any(|r| r.get("boundary") == "analytic");

@@ -286,17 +286,18 @@ impl<T: Real> CpuFld<T> {
 
     /// φ, D, σ and the absorption (1 − α)σΔl² in natural layout and normalised units.
     pub(super) fn mg_fields(&self) -> [Vec<f64>; 4] {
-        [&self.phi, &self.d, &self.sig, &self.absorb]
-            .map(|f| self.unpack(f).into_iter().map(|x| x.f()).collect())
+        [&self.phi, &self.d, &self.sig, &self.absorb].map(|f| self.unpack_f64(f, 1.0))
+    }
+
+    /// φ alone (natural layout, normalised units): the one field a cycle reads back per visit.
+    pub(super) fn mg_phi(&self) -> Vec<f64> {
+        self.unpack_f64(&self.phi, 1.0)
     }
 
     /// The right-hand side j (normalised, natural layout) of FLD Eq 32.
     pub(super) fn mg_rhs(&self) -> Vec<f64> {
         let dl2 = self.grid.dl * self.grid.dl;
-        self.unpack(&self.src)
-            .into_iter()
-            .map(|x| x.f() / dl2)
-            .collect()
+        self.unpack_f64(&self.src, 1.0 / dl2)
     }
 
     /// Sets φ (`which` = 0), D (1) or the right-hand side j (2) from natural layout.
@@ -308,13 +309,23 @@ impl<T: Real> CpuFld<T> {
             1 => (&mut self.d, 1.0),
             _ => (&mut self.src, dl2),
         };
-        for k in 0..g.n[2] {
-            for j in 0..g.n[1] {
-                for i in 0..g.n[0] {
-                    let (c, p) = packed_index(&g, self.h, i, j, k);
-                    f[c][p] = T::c(v[g.index(i, j, k)] * scale);
+        let [nx, ny, _] = g.n;
+        let h = self.h;
+        // Packed slab k of colour c holds, per row j, the voxels i = 2m + s, s = (c + j + k) & 1.
+        for (c, fc) in f.iter_mut().enumerate() {
+            fc.par_chunks_mut(ny * h).enumerate().for_each(|(k, slab)| {
+                for j in 0..ny {
+                    let s = (c + j + k) & 1;
+                    let row = &mut slab[j * h..(j + 1) * h];
+                    let base = g.index(0, j, k);
+                    for (m, x) in row.iter_mut().enumerate() {
+                        let i = 2 * m + s;
+                        if i < nx {
+                            *x = T::c(v[base + i] * scale);
+                        }
+                    }
                 }
-            }
+            });
         }
     }
 
@@ -389,16 +400,36 @@ impl<T: Real> CpuFld<T> {
     }
 
     fn unpack(&self, f: &[Vec<T>; 2]) -> Vec<T> {
+        self.unpack_map(f, T::zero(), |x| x)
+    }
+
+    /// A packed field in natural layout as `f64`, times `scale`.
+    fn unpack_f64(&self, f: &[Vec<T>; 2], scale: f64) -> Vec<f64> {
+        self.unpack_map(f, 0.0, |x| x.f() * scale)
+    }
+
+    /// A packed field in natural layout (x fastest), each value mapped by `map`; parallel
+    /// over z-slabs (every output value is written once, so the order does not matter).
+    fn unpack_map<U: Copy + Send + Sync>(
+        &self,
+        f: &[Vec<T>; 2],
+        zero: U,
+        map: impl Fn(T) -> U + Sync,
+    ) -> Vec<U> {
         let g = &self.grid;
-        let mut out = Vec::with_capacity(g.len());
-        for k in 0..g.n[2] {
-            for j in 0..g.n[1] {
-                for i in 0..g.n[0] {
-                    let (c, p) = packed_index(g, self.h, i, j, k);
-                    out.push(f[c][p]);
+        let [nx, ny, _] = g.n;
+        let h = self.h;
+        let mut out = vec![zero; g.len()];
+        out.par_chunks_mut(nx * ny)
+            .enumerate()
+            .for_each(|(k, slab)| {
+                for j in 0..ny {
+                    for i in 0..nx {
+                        let (c, p) = packed_index(g, h, i, j, k);
+                        slab[j * nx + i] = map(f[c][p]);
+                    }
                 }
-            }
-        }
+            });
         out
     }
 

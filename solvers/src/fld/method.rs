@@ -8,7 +8,7 @@
 //! [`FldConfig::default`]. Parameters: `omega` (SOR factor ω, FLD Eq 36) and `theta` (the
 //! under-relaxation of the D update, see the module docs of [`crate::fld`]).
 
-use super::multigrid::{CpuMultigrid, MgConfig};
+use super::multigrid::MgConfig;
 use super::{Boundary, FldConfig, FluxLimiter, VacuumFace};
 use crate::method::{
     AnisotropyScaling, Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem,
@@ -131,32 +131,20 @@ impl Method for FldMethod {
         let cfg = self.config_for(tolerance);
         let scaled = self.anisotropy.apply(problem.medium, problem.phase);
         let medium = scaled.as_ref().unwrap_or(problem.medium);
-        if let Some(mg) = &self.multigrid {
-            let obs = |i, r| observer(i, r);
-            return match backend {
-                Backend::Cpu(Precision::F64) => {
-                    Ok(CpuMultigrid::new(medium, &Boundary::Zero, &cfg, mg)?
-                        .solve_observed(obs)
-                        .erase())
-                }
-                Backend::Cpu(Precision::F32) => {
-                    Ok(
-                        CpuMultigrid::<f32>::new(&medium.cast(), &Boundary::Zero, &cfg, mg)?
-                            .solve_observed(obs)
-                            .widen_with(|t| t)
-                            .erase(),
-                    )
-                }
-                Backend::Gpu(_) => Err(SolverError::Unsupported(format!(
-                    "{}: multigrid runs on the CPU only (GPU multigrid is not implemented)",
-                    self.name()
-                ))),
-            };
-        }
-        super::solve(backend, medium, &Boundary::Zero, &cfg, |i, r| {
+        let solver = match &self.multigrid {
+            Some(mg) => super::Solver::Multigrid(mg.clone()),
+            None => super::Solver::Sor,
+        };
+        super::solve_with(backend, medium, &Boundary::Zero, &cfg, &solver, |i, r| {
             observer(i, r)
         })
         .map(|s| s.erase())
+        .map_err(|e| match e {
+            SolverError::Unsupported(why) => {
+                SolverError::Unsupported(format!("{}: {why}", self.name()))
+            }
+            e => e,
+        })
     }
 
     fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {

@@ -216,6 +216,7 @@ pub fn marshak_ghosts(medium: &Medium<f64>, phi: &[f64]) -> Vec<f64> {
 use crate::gpu::Timer;
 use crate::method::{Solution, Stop};
 use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
+use multigrid::CpuMultigrid;
 
 /// Which extinction enters the Knudsen number R = |∇φ|/(σ φ) and D = F(R)/σ.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -430,11 +431,66 @@ pub fn solve(
     }
 }
 
-/// FLD's part of a [`Solution`]: the residual history.
+/// How the FLD/CDA equation is solved: red-black SOR (FLD Algorithm 1, the reference) or
+/// FAS multigrid ([`multigrid`], CPU only).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum Solver {
+    /// Red-black SOR, FLD Algorithm 1.
+    #[default]
+    Sor,
+    /// FAS multigrid with these cycle settings.
+    Multigrid(multigrid::MgConfig),
+}
+
+impl Solver {
+    /// `sor` or `multigrid`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Sor => "sor",
+            Self::Multigrid(_) => "multigrid",
+        }
+    }
+}
+
+/// As [`solve`] with the solver chosen by `solver`; multigrid on a GPU backend is
+/// [`SolverError::Unsupported`].
+pub fn solve_with(
+    backend: &Backend<'_>,
+    medium: &Medium<f64>,
+    boundary: &Boundary<f64>,
+    config: &FldConfig,
+    solver: &Solver,
+    observer: impl FnMut(usize, f64),
+) -> Result<FldSolution<f64>, SolverError> {
+    let Solver::Multigrid(mg) = solver else {
+        return solve(backend, medium, boundary, config, observer);
+    };
+    match backend {
+        Backend::Cpu(Precision::F64) => {
+            Ok(CpuMultigrid::new(medium, boundary, config, mg)?.solve_observed(observer))
+        }
+        Backend::Cpu(Precision::F32) => {
+            Ok(
+                CpuMultigrid::<f32>::new(&medium.cast(), &boundary.cast(), config, mg)?
+                    .solve_observed(observer)
+                    .widen_with(|t| t),
+            )
+        }
+        Backend::Gpu(_) => Err(SolverError::Unsupported(
+            "multigrid runs on the CPU only (GPU multigrid is not implemented)".into(),
+        )),
+    }
+}
+
+/// FLD's part of a [`Solution`]: the residual history and the work it cost.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FldTrace {
     /// Normalised RMS residual R̄/j̄ after each iteration (index 0 = after iteration 1).
     pub residuals: Vec<f64>,
+    /// Work in fine red-black sweeps: SOR's iterations; for multigrid every smoothing
+    /// sweep on level ℓ counts 8^(−ℓ) ([`multigrid::CpuMultigrid::work_units`]; the
+    /// transfers and residuals are not counted, the seconds are the full cost).
+    pub work_units: f64,
 }
 
 /// The result of a diffusion solve: φ, iterations ([`Solution::steps`]), why it stopped,
@@ -518,6 +574,9 @@ pub(crate) fn solution<T>(
         setup_seconds,
         timer,
         balance: None,
-        trace: FldTrace { residuals },
+        trace: FldTrace {
+            residuals,
+            work_units: iterations as f64,
+        },
     }
 }
