@@ -349,7 +349,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
                 ));
                 let (mut run, prof, phi) = solve_case(args, n, case, backend, sv, &pb)?;
                 run.rel_l2_vs_first_solver = match &first {
-                    Some(f) => rel_l2(&phi, f),
+                    Some(f) => crate::convergence_check::rel_l2(&phi, f),
                     None => 0.0,
                 };
                 first.get_or_insert(phi);
@@ -408,19 +408,6 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
         plots(out, &albedos, &limiters, &prof, &rs, &taus, &label, suffix)?;
     }
     Ok(runs)
-}
-
-/// Relative L2 difference ‖a − b‖/‖b‖ (0 when both vanish).
-fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
-    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
-    let den: f64 = b.iter().map(|y| y * y).sum();
-    if den > 0.0 {
-        (num / den).sqrt()
-    } else if num > 0.0 {
-        f64::INFINITY
-    } else {
-        0.0
-    }
 }
 
 /// One solve: its `runs.csv` row, its +x profile and φ.

@@ -50,14 +50,15 @@
 //!   earlier measurement (see there) was made with the old, straddling coarsening.
 //! * **Cost per cycle (measured 2026-12-03, 2-core Intel Xeon with AVX-512, idle; f64, V(2,2),
 //!   `point_source --n 127 --boundary zero --tolerance 1e-6 --solver sor,multigrid`).** CDA
-//!   α = 0.5: SOR 277 iterations 2.17 s, multigrid 8 cycles (36.6 work units) 1.63 s before
-//!   and 0.96 s after this session's overhead cuts (fixed D for constant limiters, gather
-//!   tables for the transfers instead of per-voxel allocations, parallel residuals; φ
-//!   bit-identical, rel. L2 vs SOR 9.0e-7 both times). FLD-LP (before the cuts): α = 0.5
-//!   SOR 497 it. 23.7 s vs 18 cycles 9.7 s; α = 0.99 SOR 974 it. 47.8 s vs 18 cycles 11.3 s.
-//!   A cycle still costs ≈ 18 SOR sweeps of wall time for CDA (4.6 of them smoothing): the
-//!   unpack/pack passes, residuals and transfers dominate, so issue 15's ≥ 10× is not met.
-////! * **Known limitations (measured, not fixed).** Where vacuum (D = 1/(3σ_ε), a
+//!   α = 0.5: SOR 277 iterations 2.17 s (1.87 s in a later run), multigrid 8 cycles (36.6
+//!   work units) 1.63 s with the parallel residual, 1.49 s once D is fixed for constant
+//!   limiters, 0.96 s with gather tables for the transfers instead of per-voxel allocations
+//!   (φ bit-identical throughout: rel. L2 vs SOR 9.0e-7 every time). FLD-LP (measured at
+//!   the 1.63 s stage): α = 0.5 SOR 497 it. 23.7 s vs 18 cycles 9.7 s; α = 0.99 SOR 974 it.
+//!   47.8 s vs 18 cycles 11.3 s. A CDA cycle still costs ≈ 15–18 SOR sweeps of wall time
+//!   (4.6 of them smoothing): the unpack/pack passes, residuals and transfers dominate, so
+//!   issue 15's ≥ 10× is not met.
+//! * **Known limitations (measured, not fixed).** Where vacuum (D = 1/(3σ_ε), a
 //!   near-perfect conductor) fills part of the grid, the rediscretised coarse CDA operator
 //!   does not approximate the fine one: CDA on the Fig 4 cloud (n = 17, 33) reduces the
 //!   residual ×0.05–0.1 in the first cycle and then diverges (×2–6 per cycle); the stall
@@ -299,8 +300,8 @@ impl<T: Real> CpuMultigrid<T> {
         r
     }
 
-    /// Residual f − L(φ) with D recomputed from φ (0 on the Dirichlet layer), in place over
-    /// L(φ), parallel over z-slabs.
+    /// Residual f − L(φ) with D recomputed from φ, in place over L(φ) (which [`apply`]
+    /// leaves 0 on the Dirichlet layer), parallel over z-slabs.
     fn residual(&self, l: usize, phi: &[f64], d: &[f64], f: &[f64]) -> Vec<f64> {
         let lv = &self.levels[l];
         let [nx, ny, nz] = lv.grid.n;
@@ -308,23 +309,12 @@ impl<T: Real> CpuMultigrid<T> {
         r.par_chunks_mut(nx * ny)
             .zip(f.par_chunks(nx * ny))
             .enumerate()
-            .for_each(|(k, (slab, fs))| {
-                if k == 0 || k + 1 == nz {
-                    slab.fill(0.0);
-                    return;
-                }
-                for j in 0..ny {
-                    let row = &mut slab[j * nx..(j + 1) * nx];
-                    if j == 0 || j + 1 == ny {
-                        row.fill(0.0);
-                        continue;
+            .filter(|(k, _)| *k > 0 && k + 1 < nz)
+            .for_each(|(_, (slab, fs))| {
+                for j in 1..ny - 1 {
+                    for i in j * nx + 1..(j + 1) * nx - 1 {
+                        slab[i] = fs[i] - slab[i];
                     }
-                    let frow = &fs[j * nx..(j + 1) * nx];
-                    for i in 1..nx - 1 {
-                        row[i] = frow[i] - row[i];
-                    }
-                    row[0] = 0.0;
-                    row[nx - 1] = 0.0;
                 }
             });
         r
@@ -690,6 +680,29 @@ fn axes(g: &Grid) -> [Axis; 3] {
     g.n.map(Axis::new)
 }
 
+/// Per-axis gather tables of the transfers: for axis d and index i < n[d], `weights(d, i)`,
+/// built once per transfer (not per voxel).
+fn axis_tables(
+    n: [usize; 3],
+    weights: impl Fn(usize, usize) -> Vec<(usize, f64)>,
+) -> [Vec<Vec<(usize, f64)>>; 3] {
+    [0, 1, 2].map(|d| (0..n[d]).map(|i| weights(d, i)).collect())
+}
+
+/// `w` at coarse interior indices, nothing on the coarse Dirichlet layer.
+fn interior_only(
+    cg: &Grid,
+    d: usize,
+    c: usize,
+    w: impl FnOnce() -> Vec<(usize, f64)>,
+) -> Vec<(usize, f64)> {
+    if c == 0 || c + 1 == cg.n[d] {
+        Vec::new()
+    } else {
+        w()
+    }
+}
+
 /// The coarse grid of `g` (see [`Axis`]) and its medium.
 fn restrict_medium(
     g: &Grid,
@@ -707,19 +720,7 @@ fn restrict_medium(
 /// copies the nearest fine layer voxel.
 fn restrict_mean(g: &Grid, cg: &Grid, v: &[f64]) -> Vec<f64> {
     let ax = axes(g);
-    // `Axis::mean` per axis and coarse interior index, built once (not per voxel).
-    let tables = [0, 1, 2].map(|d| {
-        (0..cg.n[d])
-            .map(|c| {
-                if c == 0 || c + 1 == cg.n[d] {
-                    Vec::new()
-                } else {
-                    ax[d].mean(c)
-                }
-            })
-            .collect::<Vec<_>>()
-    });
-    let [tx, ty, tz] = &tables;
+    let [tx, ty, tz] = &axis_tables(cg.n, |d, c| interior_only(cg, d, c, || ax[d].mean(c)));
     let mut out = vec![0.0; cg.len()];
     let (cnx, cny) = (cg.n[0], cg.n[1]);
     out.par_chunks_mut(cnx * cny)
@@ -761,18 +762,7 @@ fn restrict_mean(g: &Grid, cg: &Grid, v: &[f64]) -> Vec<f64> {
 fn restrict_fw(g: &Grid, cg: &Grid, r: &[f64]) -> Vec<f64> {
     let ax = axes(g);
     let [cnx, cny, _] = cg.n;
-    // Per axis and coarse index: the fine indices and weights (interior coarse indices only).
-    let [tx, ty, tz] = [0, 1, 2].map(|d| {
-        (0..cg.n[d])
-            .map(|c| {
-                if c == 0 || c + 1 == cg.n[d] {
-                    Vec::new()
-                } else {
-                    ax[d].restrict(c)
-                }
-            })
-            .collect::<Vec<_>>()
-    });
+    let [tx, ty, tz] = &axis_tables(cg.n, |d, c| interior_only(cg, d, c, || ax[d].restrict(c)));
     let mut out = vec![0.0; cg.len()];
     out.par_chunks_mut(cnx * cny)
         .enumerate()
@@ -805,18 +795,13 @@ fn prolong_add(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64]) {
     // Per axis and fine index: the coarse (index, weight) pairs of `Axis::prolong`, without
     // zero weights and coarse Dirichlet-layer indices (their correction is zero). The
     // weights are dyadic (1, ½, ¾, ¼), so their products are exact in any order.
-    let tables = [0, 1, 2].map(|d| {
-        (0..g.n[d])
-            .map(|i| {
-                ax[d]
-                    .prolong(i)
-                    .into_iter()
-                    .filter(|&(c, w)| w != 0.0 && c > 0 && c + 1 < cg.n[d])
-                    .collect::<Vec<_>>()
-            })
-            .collect::<Vec<_>>()
+    let [tx, ty, tz] = &axis_tables(g.n, |d, i| {
+        ax[d]
+            .prolong(i)
+            .into_iter()
+            .filter(|&(c, w)| w != 0.0 && c > 0 && c + 1 < cg.n[d])
+            .collect()
     });
-    let [tx, ty, tz] = &tables;
     phi.par_chunks_mut(nx * ny)
         .enumerate()
         .for_each(|(k, slab)| {
