@@ -41,7 +41,7 @@ use super::contributions::Contributions;
 use super::estimators::check_batches;
 use super::math::{Vec3, at};
 use super::phase::sample_dir;
-use super::rng::Rng;
+use super::rng::{Rng, Streams};
 use super::shard::{BatchSums, Shard};
 use super::world::{Event, World};
 use crate::ReferenceError;
@@ -117,6 +117,7 @@ pub fn render_image_part(
     let ranges = out.sample_ranges();
     let nb = ranges.len();
     // Pixel-major while rendering (rows in parallel), batch-major in the result.
+    let streams = Streams::new(settings.seed);
     let mut by_pixel = vec![0.0; pixels * nb];
     by_pixel
         .par_chunks_mut(width * nb)
@@ -127,7 +128,7 @@ pub fn render_image_part(
                 for (k, r) in ranges.iter().enumerate() {
                     let mut sum = 0.0;
                     for s in r.clone() {
-                        let mut rng = Rng::new(settings.seed, pixel * spp + s);
+                        let mut rng = streams.path(pixel * spp + s);
                         let (o, d) = rays.ray(x as f64 + rng.uniform(), y as f64 + rng.uniform());
                         sum += radiance(&world, o, d, &settings.contributions, &mut rng);
                     }

@@ -18,7 +18,7 @@
 //! HG is reciprocal (depends only on the cosine), so the same functions serve paths traced
 //! from the light and from the camera.
 
-use super::math::{Vec3, around};
+use super::math::{Vec3, around, sin_cos_turn};
 use solvers::scene::Phase;
 use std::f64::consts::PI;
 
@@ -58,7 +58,7 @@ pub fn sample_cos(phase: &Phase, xi: f64) -> f64 {
 /// uniforms; returns the direction (its pdf is [`eval`] of the cosine).
 #[inline]
 pub fn sample_dir(phase: &Phase, dir: Vec3, xi1: f64, xi2: f64) -> Vec3 {
-    around(dir, sample_cos(phase, xi1), 2.0 * PI * xi2)
+    around(dir, sample_cos(phase, xi1), xi2)
 }
 
 /// A uniformly distributed unit vector from two uniforms.
@@ -66,7 +66,7 @@ pub fn sample_dir(phase: &Phase, dir: Vec3, xi1: f64, xi2: f64) -> Vec3 {
 pub fn uniform_sphere(xi1: f64, xi2: f64) -> Vec3 {
     let z = 1.0 - 2.0 * xi1;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let (s, c) = (2.0 * PI * xi2).sin_cos();
+    let (s, c) = sin_cos_turn(xi2);
     [r * c, r * s, z]
 }
 

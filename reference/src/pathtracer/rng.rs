@@ -21,19 +21,9 @@ pub struct Rng {
 }
 
 impl Rng {
-    /// The generator of path `index` under `seed`.
+    /// The generator of path `index` under `seed` ([`Streams::path`]).
     pub fn new(seed: u64, index: u64) -> Self {
-        // A SplitMix64 sequence started at a hash of (seed, index).
-        let mut k = mix64(mix64(seed.wrapping_add(GOLDEN)) ^ index.wrapping_mul(GOLDEN));
-        let mut next = || {
-            k = k.wrapping_add(GOLDEN);
-            mix64(k)
-        };
-        let state = ((next() as u128) << 64) | next() as u128;
-        let inc = (((next() as u128) << 64) | next() as u128) | 1;
-        let mut rng = Self { state, inc };
-        rng.step();
-        rng
+        Streams::new(seed).path(index)
     }
 
     #[inline(always)]
@@ -59,6 +49,38 @@ impl Rng {
     #[inline(always)]
     pub fn exponential(&mut self) -> f64 {
         -(1.0 - self.uniform()).ln()
+    }
+}
+
+/// The random streams of one seed: [`Streams::path`] is [`Rng::new`] with the hash of the
+/// seed computed once per render instead of once per path.
+#[derive(Debug, Clone, Copy)]
+pub struct Streams {
+    key: u64,
+}
+
+impl Streams {
+    /// The streams of `seed`.
+    pub fn new(seed: u64) -> Self {
+        Self {
+            key: mix64(seed.wrapping_add(GOLDEN)),
+        }
+    }
+
+    /// The generator of path `index`.
+    #[inline]
+    pub fn path(&self, index: u64) -> Rng {
+        // A SplitMix64 sequence started at a hash of (seed, index).
+        let mut k = mix64(self.key ^ index.wrapping_mul(GOLDEN));
+        let mut next = || {
+            k = k.wrapping_add(GOLDEN);
+            mix64(k)
+        };
+        let state = ((next() as u128) << 64) | next() as u128;
+        let inc = (((next() as u128) << 64) | next() as u128) | 1;
+        let mut rng = Rng { state, inc };
+        rng.step();
+        rng
     }
 }
 

@@ -21,10 +21,10 @@
 //! tracking is the exact product of per-voxel transmittances); trilinear, the dual cells
 //! between voxel centres, on which σt(t) along a ray is one cubic (a product of three
 //! linear weights): its optical depth is integrated exactly by two-point Gauss–Legendre
-//! ([`cubic_depth`], lookups summing non-negative terms, so no cancellation at any
+//! (`cubic_depth`, lookups summing non-negative terms, so no cancellation at any
 //! contrast), delta tracking becomes regular tracking (the collision is where the exact
 //! optical depth reaches the exponential variate: safeguarded Newton on the monotone depth,
-//! [`invert_cubic_depth`]) and ratio tracking the exact e^{−τ}. Nothing is stored per cell.
+//! `invert_cubic_depth`) and ratio tracking the exact e^{−τ}. Nothing is stored per cell.
 //! The tentative collisions of a path are then bounded by its real collisions plus the
 //! cells it crosses, whatever the contrast, for both reconstructions
 //! (`dense_voxels_cost_bounded_work`: at most one per call, and it is real, for a voxel of
@@ -41,9 +41,17 @@
 //! carries over (memorylessness), so one exponential variate is used per tentative collision.
 //!
 //! **Ratio tracking** (Novák, Selle, Jarosz 2014): the same tentative collisions, but the
-//! estimate is multiplied by (1 − σt(x)/μ̄) at each instead of stopping. Once the estimate
+//! estimate is multiplied by (1 − σt(x)/μ̄) at each instead of stopping; as in delta
+//! tracking, the remaining exponential optical depth carries across block boundaries. Once the estimate
 //! falls below 10⁻² it is continued with probability ½ and doubled (Russian roulette), which
 //! keeps it unbiased and bounds the work in optically thick media.
+//!
+//! **Active box.** Rays are clipped to the smallest box outside which σt is 0 (the voxels
+//! with σt > 0, one voxel wider for trilinear lookups), not to the grid: the vacuum around
+//! a cloud or a sphere then costs no walk at all, and camera rays that miss the medium no
+//! random number (`vacuum_around_the_medium_is_clipped_away`). On
+//! `scenes/environment_sphere.toml` this cut the render time by 24 % (0.271 s → 0.206 s,
+//! `reference/examples/pt_profile.rs`, 1024 spp).
 //!
 //! **Uniform blocks.** A block whose reconstruction is constant (every voxel its lookup can
 //! reach has the same σt) is flagged. There every tentative collision is real, so delta
@@ -55,7 +63,7 @@
 
 use super::math::{Vec3, at};
 use super::rng::Rng;
-use super::volume::{Interpolation, Volume, traverse};
+use super::volume::{Interpolation, Volume, clip_box, traverse};
 
 /// Default majorant block edge in voxels.
 pub const DEFAULT_BLOCK: usize = 8;
@@ -94,6 +102,9 @@ pub struct Majorant {
     cell: f64,
     origin: Vec3,
     values: Vec<f64>,
+    /// The box outside which σt is 0 (`None`: 0 everywhere): rays are clipped to it, so
+    /// the vacuum around a medium costs no walk (module docs).
+    active: Option<(Vec3, Vec3)>,
     /// Whether σt is constant over the block's stencil (see the module docs).
     uniform: Vec<bool>,
     /// Whether the block is walked cell by cell (module docs).
@@ -150,10 +161,18 @@ impl Majorant {
             nb,
             cell: block as f64 * g.dl,
             origin: g.origin,
+            active: active_box(volume),
             values,
             uniform,
             refined,
         }
+    }
+
+    /// The part of the ray `o + t·d` inside the box where σt can be non-zero.
+    #[inline]
+    fn clip(&self, o: Vec3, d: Vec3) -> Option<(f64, f64)> {
+        let (lo, hi) = self.active?;
+        clip_box(lo, hi, o, d)
     }
 
     /// Block edge in voxels.
@@ -215,6 +234,23 @@ impl Majorant {
         mut f: impl FnMut(Piece, f64, f64) -> bool,
     ) {
         let nb = self.nb;
+        if self.values.len() == 1 {
+            // One global block: no walk to set up (a homogeneous medium's every flight and
+            // shadow ray; its 3D DDA setup was 9 divisions per ray).
+            if self.refined[0] {
+                cells(volume, o, d, ta, tb, &mut f);
+            } else {
+                f(
+                    Piece::Bound {
+                        mu: self.values[0],
+                        uniform: self.uniform[0],
+                    },
+                    ta,
+                    tb,
+                );
+            }
+            return;
+        }
         traverse(self.origin, self.cell, nb, o, d, ta, tb, |c, t0, t1| {
             let b = c[0] + nb[0] * (c[1] + nb[1] * c[2]);
             if self.refined[b] {
@@ -231,6 +267,51 @@ impl Majorant {
             }
         });
     }
+}
+
+/// The smallest box outside which the reconstruction of σt is 0: the voxels with σt > 0,
+/// widened by one voxel (within the grid) for trilinear lookups, whose stencil reaches that
+/// far; `None` for a medium that is vacuum everywhere.
+fn active_box(volume: &Volume) -> Option<(Vec3, Vec3)> {
+    let g = volume.grid();
+    let sigma = volume.sigma_t_samples();
+    let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
+    for k in 0..g.n[2] {
+        for j in 0..g.n[1] {
+            for i in 0..g.n[0] {
+                if sigma[g.index(i, j, k)] > 0.0 {
+                    for (a, c) in [i, j, k].into_iter().enumerate() {
+                        lo[a] = lo[a].min(c);
+                        hi[a] = hi[a].max(c);
+                    }
+                }
+            }
+        }
+    }
+    if lo[0] == usize::MAX {
+        return None;
+    }
+    let ring = usize::from(volume.interpolation() == Interpolation::Trilinear);
+    let (glo, ghi) = volume.bounds();
+    let mut blo = [0.0; 3];
+    let mut bhi = [0.0; 3];
+    for a in 0..3 {
+        let l = lo[a].saturating_sub(ring);
+        let h = (hi[a] + 1 + ring).min(g.n[a]);
+        // The grid's own faces where the box reaches them, so that clipping to it is
+        // clipping to the grid there (no rounding of a recomputed face).
+        blo[a] = if l == 0 {
+            glo[a]
+        } else {
+            g.origin[a] + l as f64 * g.dl
+        };
+        bhi[a] = if h == g.n[a] {
+            ghi[a]
+        } else {
+            g.origin[a] + h as f64 * g.dl
+        };
+    }
+    Some((blo, bhi))
 }
 
 /// What the walk knows about σt on one segment of a ray.
@@ -416,7 +497,7 @@ impl Tracker {
         rng: &mut Rng,
         tentative: &mut u64,
     ) -> Option<f64> {
-        let (c0, c1) = self.volume.clip(o, d)?;
+        let (c0, c1) = self.majorant.clip(o, d)?;
         let (ta, tb) = (ta.max(c0), tb.min(c1));
         if ta >= tb {
             return None;
@@ -450,6 +531,8 @@ impl Tracker {
             if left < 0.0 {
                 left = rng.exponential();
             }
+            // One division per piece, not per tentative collision.
+            let inv = 1.0 / mu;
             let mut t = t0;
             loop {
                 let span = mu * (t1 - t);
@@ -457,7 +540,7 @@ impl Tracker {
                     left -= span;
                     return true;
                 }
-                t += left / mu;
+                t += left * inv;
                 *tentative += 1;
                 if uniform || rng.uniform() * mu < volume.sigma_t(at(o, d, t)) {
                     hit = Some(t);
@@ -488,7 +571,7 @@ impl Tracker {
         rng: &mut Rng,
         tentative: &mut u64,
     ) -> f64 {
-        let Some((c0, c1)) = self.volume.clip(o, d) else {
+        let Some((c0, c1)) = self.majorant.clip(o, d) else {
             return 1.0;
         };
         let (ta, tb) = (ta.max(c0), tb.min(c1));
@@ -496,6 +579,8 @@ impl Tracker {
             return 1.0;
         }
         let mut tr = 1.0;
+        // Remaining exponential optical depth to the next tentative point (drawn lazily).
+        let mut left = -1.0;
         let volume = &self.volume;
         self.majorant.walk(volume, o, d, ta, tb, |piece, t0, t1| {
             let (mu, uniform) = match piece {
@@ -512,17 +597,28 @@ impl Tracker {
                 tr *= (-mu * (t1 - t0)).exp();
                 return roulette(&mut tr, rng);
             }
+            // The remaining exponential optical depth carries over into the next piece
+            // (memorylessness, as in delta tracking): one variate per tentative point, not
+            // one more per piece crossed. One division per piece, not two per tentative
+            // point (the ratio is clamped at 0: σt = μ̄ can round σt·(1/μ̄) above 1).
+            if left < 0.0 {
+                left = rng.exponential();
+            }
+            let inv = 1.0 / mu;
             let mut t = t0;
             loop {
-                t += rng.exponential() / mu;
-                if t >= t1 {
+                let span = mu * (t1 - t);
+                if left >= span {
+                    left -= span;
                     return true;
                 }
+                t += left * inv;
                 *tentative += 1;
-                tr *= 1.0 - volume.sigma_t(at(o, d, t)) / mu;
+                tr *= (1.0 - volume.sigma_t(at(o, d, t)) * inv).max(0.0);
                 if !roulette(&mut tr, rng) {
                     return false;
                 }
+                left = rng.exponential();
             }
         });
         tr
@@ -578,6 +674,60 @@ mod tests {
             ([0.9, 0.7, 0.55], normalize([-1.0, -0.6, -0.7])),
             ([0.5, 0.4, 0.3], normalize([0.2, -0.3, 0.9])),
         ]
+    }
+
+    /// Rays are clipped to the box outside which σt is 0: on the test medium (vacuum above
+    /// z = 0.4) that box ends at z = 0.4 for nearest lookups and one voxel higher for
+    /// trilinear ones, whose stencil reaches there. A ray through the vacuum layer draws no
+    /// random number and sees transmittance exactly 1; at z = 0.41 it still sees the medium
+    /// with trilinear lookups and not with nearest ones. An all-vacuum medium has no box.
+    #[test]
+    fn vacuum_around_the_medium_is_clipped_away() {
+        let m = medium();
+        let ray = |z: f64| ([-0.1, 0.3, z], [1.0, 0.0, 0.0]);
+        for (interp, top, sees_041) in [
+            (Interpolation::Nearest, 0.4, false),
+            (Interpolation::Trilinear, 0.45, true),
+        ] {
+            let v = Volume::new(&m, interp).unwrap();
+            let tr = Tracker::new(v.clone(), 4);
+            let (lo, hi) = tr.majorant.active.unwrap();
+            let (glo, ghi) = v.bounds();
+            assert_eq!((lo, [hi[0], hi[1]]), (glo, [ghi[0], ghi[1]]), "{interp:?}");
+            assert!((hi[2] - top).abs() < 1e-12, "{interp:?}: top {}", hi[2]);
+            let (o, d) = ray(0.5);
+            let mut rng = Rng::new(3, 0);
+            let mut tentative = 0;
+            assert_eq!(
+                tr.sample_collision_counted(o, d, 0.0, f64::INFINITY, &mut rng, &mut tentative),
+                None
+            );
+            assert_eq!(tr.transmittance(o, d, 0.0, f64::INFINITY, &mut rng), 1.0);
+            assert_eq!(tentative, 0);
+            assert_eq!(
+                rng.next_u64(),
+                Rng::new(3, 0).next_u64(),
+                "{interp:?}: RNG used"
+            );
+            let (o, d) = ray(0.41);
+            let exact = (-v.optical_depth(o, d, 0.0, f64::INFINITY)).exp();
+            assert_eq!(exact < 1.0, sees_041, "{interp:?}: exact {exact}");
+            let mut rng = Rng::new(4, 0);
+            let t = tr.transmittance(o, d, 0.0, f64::INFINITY, &mut rng);
+            assert_eq!(t < 1.0, sees_041, "{interp:?}: ratio tracking {t}");
+        }
+        let grid = Grid::new([4, 4, 4], 0.25).unwrap();
+        let n = grid.len();
+        let empty = Medium::new(grid, vec![0.0; n], vec![0.5; n], vec![0.0; n]).unwrap();
+        let tr = Tracker::new(Volume::new(&empty, Interpolation::Nearest).unwrap(), 8);
+        assert!(tr.majorant.active.is_none());
+        let mut rng = Rng::new(5, 0);
+        let (o, d) = ([0.5, 0.5, -1.0], [0.0, 0.0, 1.0]);
+        assert_eq!(
+            tr.sample_collision(o, d, 0.0, f64::INFINITY, &mut rng),
+            None
+        );
+        assert_eq!(tr.transmittance(o, d, 0.0, f64::INFINITY, &mut rng), 1.0);
     }
 
     /// Ratio tracking and the escape probability of delta tracking both estimate

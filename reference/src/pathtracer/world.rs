@@ -166,15 +166,25 @@ impl World {
         }
     }
 
-    /// Transmittance from `x` along unit `d` up to `t_max`: 0 if a sphere intervenes,
+    /// Transmittance from `x` along unit `d` up to `t_max`: 0 if a sphere other than
+    /// `target` (the sphere light sampled, whose near surface is at `t_max`: it cannot
+    /// occlude itself, and skipping it saves an intersection per sample) intervenes,
     /// otherwise ratio tracking through the medium.
     #[inline]
-    pub fn shadow(&self, x: Vec3, d: Vec3, t_max: f64, rng: &mut Rng) -> f64 {
+    pub fn shadow(
+        &self,
+        x: Vec3,
+        d: Vec3,
+        t_max: f64,
+        target: Option<usize>,
+        rng: &mut Rng,
+    ) -> f64 {
         let limit = t_max * (1.0 - 1e-9);
         if self
             .spheres
             .iter()
-            .any(|s| s.intersect(x, d).is_some_and(|(t, _)| t < limit))
+            .enumerate()
+            .any(|(i, s)| Some(i) != target && s.intersect(x, d).is_some_and(|(t, _)| t < limit))
         {
             return 0.0;
         }
@@ -194,14 +204,14 @@ impl World {
             if dist > 0.0 {
                 let wl = scale(v, 1.0 / dist);
                 let f = eval(&self.phase, dot(wl, d));
-                sum += intensity * f / (dist * dist) * self.shadow(x, wl, dist, rng);
+                sum += intensity * f / (dist * dist) * self.shadow(x, wl, dist, None, rng);
             }
         }
         for &(wl, irradiance) in &self.directionals {
             let f = eval(&self.phase, dot(wl, d));
-            sum += irradiance * f * self.shadow(x, wl, f64::INFINITY, rng);
+            sum += irradiance * f * self.shadow(x, wl, f64::INFINITY, None, rng);
         }
-        for s in &self.spheres {
+        for (i, s) in self.spheres.iter().enumerate() {
             let v = sub(s.center, x);
             let dist2 = dot(v, v);
             let r2 = s.radius * s.radius;
@@ -211,18 +221,21 @@ impl World {
             let dist = dist2.sqrt();
             let axis = scale(v, 1.0 / dist);
             // Uniform over the cone of directions subtended by the sphere;
-            // 1 − cos θmax = sin²θmax / (1 + cos θmax) without cancellation.
+            // 1 − cos θmax = sin²θmax / (1 + cos θmax) without cancellation (sin² from
+            // dist², not from 1/dist: a shorter chain of dependent square roots and
+            // divisions, which is what this loop waits on).
             let sin2 = r2 / dist2;
             let cos_max = (1.0 - sin2).sqrt();
             let one_minus = sin2 / (1.0 + cos_max);
             let cos = 1.0 - rng.uniform() * one_minus;
-            let wl = around(axis, cos, 2.0 * PI * rng.uniform());
+            let wl = around(axis, cos, rng.uniform());
             // Distance to the near surface; clamp the discriminant at the cone's rim.
             let b = dist * cos;
             let t = b - (b * b - (dist2 - r2)).max(0.0).sqrt();
-            let pdf = 1.0 / (2.0 * PI * one_minus);
+            // 1/pdf: the cone's solid angle.
+            let solid_angle = 2.0 * PI * one_minus;
             let f = eval(&self.phase, dot(wl, d));
-            sum += s.radiance * f / pdf * self.shadow(x, wl, t, rng);
+            sum += s.radiance * f * solid_angle * self.shadow(x, wl, t, Some(i), rng);
         }
         sum
     }
@@ -415,7 +428,7 @@ impl Sources {
 #[inline]
 fn cosine_around(n: Vec3, rng: &mut Rng) -> Vec3 {
     let cos = rng.uniform().sqrt();
-    let d = around(n, cos, 2.0 * PI * rng.uniform());
+    let d = around(n, cos, rng.uniform());
     // Guard against a grazing direction rounding to the wrong side.
     if dot(d, n) > 0.0 { d } else { n }
 }

@@ -114,8 +114,13 @@ pub struct CameraRays {
     r: Vec3,
     u: Vec3,
     projection: Projection,
-    w: f64,
-    h: f64,
+    /// Half extents of the image plane along r and u: tan(fov_y/2)·(W/H, 1) at unit
+    /// distance for a perspective camera, (w/2)·(1, H/W) for an orthographic one. Computed
+    /// once (a `tan` and three divisions per path were 7 % of a path-traced render's
+    /// profile, `reference/examples/pt_profile.rs` on `scenes/emissive_sphere.toml`).
+    half: [f64; 2],
+    /// 2/W and 2/H: image coordinates by multiplication.
+    scale: [f64; 2],
 }
 
 impl CameraRays {
@@ -124,30 +129,35 @@ impl CameraRays {
         let f = normalize(sub(c.target, c.eye));
         let r = normalize(cross(f, c.up));
         let u = cross(r, f);
+        let (w, h) = (c.resolution[0] as f64, c.resolution[1] as f64);
         Self {
             eye: c.eye,
             f,
             r,
             u,
             projection: c.projection,
-            w: c.resolution[0] as f64,
-            h: c.resolution[1] as f64,
+            half: match c.projection {
+                Projection::Perspective { fov_y_degrees } => {
+                    let t = (0.5 * fov_y_degrees.to_radians()).tan();
+                    [t * w / h, t]
+                }
+                Projection::Orthographic { width } => [0.5 * width, 0.5 * width * h / w],
+            },
+            scale: [2.0 / w, 2.0 / h],
         }
     }
 
     /// Origin and unit direction of the ray through image position (px, py).
     pub fn ray(&self, px: f64, py: f64) -> (Vec3, Vec3) {
-        let sx = 2.0 * px / self.w - 1.0;
-        let sy = 1.0 - 2.0 * py / self.h;
+        let sx = px * self.scale[0] - 1.0;
+        let sy = 1.0 - py * self.scale[1];
+        let (a, b) = (sx * self.half[0], sy * self.half[1]);
         match self.projection {
-            Projection::Perspective { fov_y_degrees } => {
-                let t = (0.5 * fov_y_degrees.to_radians()).tan();
-                let (a, b) = (sx * t * self.w / self.h, sy * t);
+            Projection::Perspective { .. } => {
                 let d = [0, 1, 2].map(|i| self.f[i] + a * self.r[i] + b * self.u[i]);
                 (self.eye, normalize(d))
             }
-            Projection::Orthographic { width } => {
-                let (a, b) = (sx * 0.5 * width, sy * 0.5 * width * self.h / self.w);
+            Projection::Orthographic { .. } => {
                 let o = [0, 1, 2].map(|i| self.eye[i] + a * self.r[i] + b * self.u[i]);
                 (o, self.f)
             }
