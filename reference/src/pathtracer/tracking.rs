@@ -168,6 +168,13 @@ impl Majorant {
         }
     }
 
+    /// σt of a medium that is one uniform block (homogeneous): its flights and shadow rays
+    /// skip the walk and its closure altogether.
+    #[inline]
+    fn homogeneous(&self) -> Option<f64> {
+        (self.values.len() == 1 && self.uniform[0] && !self.refined[0]).then_some(self.values[0])
+    }
+
     /// The part of the ray `o + t·d` inside the box where σt can be non-zero.
     #[inline]
     fn clip(&self, o: Vec3, d: Vec3) -> Option<(f64, f64)> {
@@ -502,6 +509,15 @@ impl Tracker {
         if ta >= tb {
             return None;
         }
+        if let Some(mu) = self.majorant.homogeneous() {
+            // The walk's one uniform piece, inlined (bit-identical to it).
+            let left = rng.exponential();
+            if left >= mu * (tb - ta) {
+                return None;
+            }
+            *tentative += 1;
+            return Some(ta + left * (1.0 / mu));
+        }
         // Remaining exponential optical depth; drawn lazily so that vacuum costs nothing.
         let mut left = -1.0;
         let mut hit = None;
@@ -577,6 +593,12 @@ impl Tracker {
         let (ta, tb) = (ta.max(c0), tb.min(c1));
         if ta >= tb {
             return 1.0;
+        }
+        if let Some(mu) = self.majorant.homogeneous() {
+            // The walk's one uniform piece, inlined (bit-identical to it).
+            let mut tr = (-mu * (tb - ta)).exp();
+            roulette(&mut tr, rng);
+            return tr;
         }
         let mut tr = 1.0;
         // Remaining exponential optical depth to the next tentative point (drawn lazily).

@@ -148,6 +148,7 @@ impl CameraRays {
     }
 
     /// Origin and unit direction of the ray through image position (px, py).
+    #[inline]
     pub fn ray(&self, px: f64, py: f64) -> (Vec3, Vec3) {
         let sx = px * self.scale[0] - 1.0;
         let sy = 1.0 - py * self.scale[1];

@@ -40,6 +40,7 @@ pub enum Phase {
 
 impl Phase {
     /// The mean cosine of the scattering angle (0 for isotropic).
+    #[inline]
     pub fn mean_cosine(&self) -> f64 {
         match *self {
             Phase::Isotropic => 0.0,
