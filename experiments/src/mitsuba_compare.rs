@@ -634,6 +634,10 @@ impl Experiment for MitsubaCompare {
             "rel_diff",
             "speedup",
             "alpha",
+            "ours_paths_per_second",
+            "mitsuba_paths_per_second",
+            "mitsuba_warm_paths_per_second",
+            "speedup_cpu",
         ])?;
         let mut out = String::from(
             "Per-pixel Welch t-test with Šidák correction (family-wise α in the table), image means with standard \
@@ -672,6 +676,35 @@ impl Experiment for MitsubaCompare {
                 "speed-up (paths/s)",
             ],
             rows,
+        ));
+        out.push_str(
+            "\nPaths per second of both renderers, same scene and spp, measured in the same run \
+             (Mitsuba's warm rate leaves out each variant's first render, which carries llvm_ad_rgb's \
+             JIT compilation; per CPU-second counts user + system time, robust to other load):\n\n",
+        );
+        let speed = t.rows().map(|r| {
+            let ours = r.num("ours_paths_per_second");
+            vec![
+                format!("`{}`", r.get("variant")),
+                r.sci("ours_paths_per_second", 3),
+                r.sci("mitsuba_paths_per_second", 3),
+                r.sci("mitsuba_warm_paths_per_second", 3),
+                r.fixed("speedup", 2),
+                crate::report::fixed(ours / r.num("mitsuba_warm_paths_per_second"), 2),
+                r.fixed("speedup_cpu", 2),
+            ]
+        });
+        out.push_str(&table(
+            &[
+                "Mitsuba variant",
+                "ours (paths/s)",
+                "Mitsuba (paths/s)",
+                "Mitsuba warm (paths/s)",
+                "ratio",
+                "ratio vs warm",
+                "ratio per CPU-second",
+            ],
+            speed,
         ));
         out.push('\n');
         out.push_str(&s.pngs(["ours.png", "mitsuba.png", "difference.png"]));
