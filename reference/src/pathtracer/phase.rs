@@ -55,13 +55,15 @@ pub fn sample_cos(phase: &Phase, xi: f64) -> f64 {
 }
 
 /// Samples a new propagation direction after scattering from unit direction `dir`, with two
-/// uniforms; returns the direction (its pdf is [`eval`] of the cosine).
+/// uniforms in [0, 1] (`xi2` is the azimuth as a fraction of a turn); returns the direction
+/// (its pdf is [`eval`] of the cosine).
 #[inline]
 pub fn sample_dir(phase: &Phase, dir: Vec3, xi1: f64, xi2: f64) -> Vec3 {
     around(dir, sample_cos(phase, xi1), xi2)
 }
 
-/// A uniformly distributed unit vector from two uniforms.
+/// A uniformly distributed unit vector from two uniforms in [0, 1] (`xi2` is the azimuth as
+/// a fraction of a turn).
 #[inline]
 pub fn uniform_sphere(xi1: f64, xi2: f64) -> Vec3 {
     let z = 1.0 - 2.0 * xi1;
