@@ -37,15 +37,15 @@ pub enum FluxLimiter {
     /// Classical diffusion, F = 1/3 (FLD Eq 11; "the FLD solver with flux limiter set to
     /// constant F = 1/3", Section 6.1). Not a limiter: it violates F ≤ 1/R for R > 3.
     Cda,
-    /// Sum limiter [BW82], F = 1/(3 + R).
+    /// Sum limiter \[BW82\], F = 1/(3 + R).
     Sum,
-    /// Max limiter [BW82], F = 1/max(3, R).
+    /// Max limiter \[BW82\], F = 1/max(3, R).
     Max,
-    /// Kershaw [Ker76], F = 2/(3 + √(9 + 4R²)).
+    /// Kershaw \[Ker76\], F = 2/(3 + √(9 + 4R²)).
     Kershaw,
-    /// Larsen-n [LK74], F = (3ⁿ + Rⁿ)^(−1/n), n > 0 (commonly 2).
+    /// Larsen-n \[LK74\], F = (3ⁿ + Rⁿ)^(−1/n), n > 0 (commonly 2).
     Larsen(f64),
-    /// Levermore–Pomraning [LP81], F = (coth R − 1/R)/R. The paper's choice for all its images.
+    /// Levermore–Pomraning \[LP81\], F = (coth R − 1/R)/R. The paper's choice for all its images.
     LevermorePomraning,
 }
 
@@ -182,7 +182,7 @@ pub(crate) fn exp_bounded<T: Real>(y: T) -> T {
 /// The closed form cancels catastrophically as R → 0 (coth R ≈ 1/R). Both forms below are
 /// sums of positive terms, so neither cancels:
 /// * R ≤ 2: the depth-10 convergent P(R²)/Q(R²) of Lambert's continued fraction
-///   F = 1/(3 + R²/(5 + R²/(7 + …))) ([`LP_PADE_P`]); F(0) = 1/3 correctly rounded.
+///   F = 1/(3 + R²/(5 + R²/(7 + …))) (`LP_PADE_P`); F(0) = 1/3 correctly rounded.
 /// * R > 2: with u = 1/R and e = e^(−2R), coth R = (1 + e)/(1 − e) gives
 ///   F = u·((1 − u) + e(1 + u))/(1 − e); 1 − u ∈ [1/2, 1) costs at most half an ulp, and
 ///   e ≤ 0.018 enters with weight ≤ 0.05, so the cheap `exp_bounded` is accurate enough. R·F → 1 as

@@ -224,7 +224,7 @@ pub enum KnudsenSigma {
     /// σt, as in FLD Eqs 15, 16, 33, 35.
     #[default]
     Extinction,
-    /// α·σt = σs, Levermore & Pomraning's original effective-albedo form [LP81] with the
+    /// α·σt = σs, Levermore & Pomraning's original effective-albedo form \[LP81\] with the
     /// effective albedo taken as the single-scattering albedo α (their ω also counts the local
     /// source, which we leave out): R = |∇φ|/(α σt φ), D = F(R)/(α σt). This keeps the flux
     /// bound |E| ≤ φ and has D → 1/(3σs) in the diffusive limit, which is closer to the

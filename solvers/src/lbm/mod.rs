@@ -47,7 +47,7 @@
 //!   ([`SigmaMapping::Exponential`], default; exact transmission for axial beams, never
 //!   needs clamping), or the paper-style linear σt,lat = σt Δl clamped to 1
 //!   ([`SigmaMapping::Linear`]; the number of clamped sites is reported in
-//!   [`LbmSolution::clamped_sites`]). σs,lat = α σt,lat, σa,lat = (1 − α) σt,lat. The paper's
+//!   `LbmSolution::clamped_sites`). σs,lat = α σt,lat, σa,lat = (1 − α) σt,lat. The paper's
 //!   per-site density scaling (LB Section 4) is the medium's σt field itself.
 //! * **Density** is power: a directional density f carries f units of energy per step, so
 //!   injecting P per step and counting outflow per step compare powers directly.

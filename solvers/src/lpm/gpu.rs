@@ -1,7 +1,7 @@
 //! The wgpu kernels of LPM (f32), the GPU twin of [`super::cpu`]: the same geometry tables,
 //! the same per-sub-segment arithmetic ([`super::cpu::phis`] with the same f32 e^{−τ}), the
 //! same collect order, the same stopping rule. The shader is `lpm.wgsl` beside this file;
-//! `GpuParams` is mirrored there as `Params` and [`SPEC`] declares its bindings (both
+//! `GpuParams` is mirrored there as `Params` and `SPEC` declares its bindings (both
 //! checked against the WGSL by `tests/kernel_contract.rs`).
 //!
 //! **Race freedom without atomics (D17, class-slotted T).** An order is, per face: `sweep`

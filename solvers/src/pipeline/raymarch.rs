@@ -23,7 +23,7 @@
 //! m = ⌈length / (step·Δl)⌉ equal sub-steps of length h. Over a sub-step the integrand is
 //! e^{−τ(s)}·f(s), τ the total optical depth (camera side, plus the light side for single
 //! scattering) and f the rest of the source; both are evaluated at the sub-step's ends and
-//! integrated exactly as if linear ([`exp_linear`]: ∫₀ʰ e^{−(τa + cs)}(fa + f′s) ds in closed
+//! integrated exactly as if linear (`exp_linear`: ∫₀ʰ e^{−(τa + cs)}(fa + f′s) ds in closed
 //! form, from the far end when τ falls along s). So:
 //! * emission (f = j/4π constant per voxel): exact whatever `step`;
 //! * multiple scattering (f = σs φ/4π, φ trilinear): exact for the attenuation, second
@@ -221,7 +221,7 @@ fn shadowed(
 /// Within a voxel the ray is cut into sub-steps; the source (and, for single scattering,
 /// the optical depth to each light) is evaluated at the sub-step ends and the integral
 /// over each sub-step is exact for a source linear and an optical depth linear along it
-/// ([`exp_linear`]), so a dense voxel's exponential fall-off is integrated exactly whatever
+/// (`exp_linear`), so a dense voxel's exponential fall-off is integrated exactly whatever
 /// `step_len` (see the module docs).
 pub fn march(
     medium: &Medium<f64>,
