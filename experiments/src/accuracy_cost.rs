@@ -121,7 +121,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, allow_negative_numbers = true)]
     pub g: Option<Vec<f64>>,
     /// The grid methods' settings, `DS:TOL:PRECISION` each (e.g. `2:1e-3:f32`), comma-separated;
-    /// default the ladder of [`grid_settings`] (quick: `4:1e-3:f32,2:1e-3:f32`).
+    /// default the ladder of `grid_settings` (quick: `4:1e-3:f32,2:1e-3:f32`).
     #[arg(long, value_delimiter = ',', value_parser = parse_grid_setting)]
     pub grid: Option<Vec<Setting>>,
     /// Seed of the reference (the path tracer's points use seed + 1000).

@@ -314,7 +314,7 @@ fn draw_legend<DB: DrawingBackend>(
 /// Draws `series` into a PNG at `path` (900 × 650 px).
 ///
 /// The legend shows each labelled series' drawing style (solid, dashed, markers; see
-/// [`Entry`] for unlabelled companions) and goes where it covers no data: the first free
+/// `Entry` for unlabelled companions) and goes where it covers no data: the first free
 /// corner or edge midpoint of the plot frame, else a margin right of the frame.
 pub fn plot(path: &Path, title: &str, x: &Axis, y: &Axis, series: &[Series]) -> Result<()> {
     register_font();

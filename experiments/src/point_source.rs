@@ -44,7 +44,7 @@ pub struct Args {
     /// Albedos.
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, default_value = "0.1,0.3,0.5,0.7,0.9,0.99")]
     pub albedo: Vec<f64>,
-    /// Flux limiters: cda, sum, max, kershaw, larsen<n>, lp, or `all`.
+    /// Flux limiters: cda, sum, max, kershaw, `larsen<n>`, lp, or `all`.
     #[arg(long, value_delimiter = ',', value_parser = limiter_item, default_value = "all")]
     pub limiter: Vec<String>,
     /// Boundaries: zero, analytic, or auto (CDA both, FLD zero).
