@@ -48,7 +48,7 @@ const SUMMARY_ITERATIONS: usize = 5;
 const PROBE_REPS: usize = 5;
 /// Output of the summary, relative to the workspace root.
 const CSV_PATH: &str = "results/bench/diffusion_cpu.csv";
-const CSV_HEADER: &str = "n,precision,method,ms_per_iter,mvox_per_s,effective_gbs,triad_gbs,copy_gbs,ratio_triad,triad_dram_gbs,ratio_triad_dram";
+const CSV_HEADER: &str = "n,precision,method,ms_per_iter,mvox_per_s,effective_gbs,triad_gbs,copy_gbs,ratio_triad,triad_dram_gbs,ratio_triad_dram,threads,cpu";
 
 /// The two benchmarked diffusion methods.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -251,7 +251,7 @@ impl Row {
 
     fn csv(&self) -> String {
         format!(
-            "{},{},{},{:.4},{:.3},{:.3},{:.3},{:.3},{:.4},{:.3},{:.4}",
+            "{},{},{},{:.4},{:.3},{:.3},{:.3},{:.3},{:.4},{:.3},{:.4},{},{}",
             self.n,
             self.precision,
             self.method,
@@ -262,7 +262,9 @@ impl Row {
             self.copy_gbs,
             self.ratio_triad(),
             self.triad_dram_gbs,
-            self.ratio_triad_dram()
+            self.ratio_triad_dram(),
+            rayon::current_num_threads(),
+            benches::cli::cpu_model()
         )
     }
 }

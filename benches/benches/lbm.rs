@@ -104,18 +104,6 @@ impl Row {
     }
 }
 
-fn cpu_name() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|s| s.trim().to_string())
-        })
-        .unwrap_or_else(|| "cpu".into())
-}
-
 fn bench_cpu<T: Real>(c: &mut Criterion, sizes: &[usize], summary: bool, rows: &mut Vec<Row>) {
     let (inj, cfg) = setup();
     let mut group = c.benchmark_group(format!("lbm_step/{}", T::NAME));
@@ -150,7 +138,11 @@ fn bench_cpu<T: Real>(c: &mut Criterion, sizes: &[usize], summary: bool, rows: &
             );
             rows.push(Row {
                 backend: "cpu",
-                device: format!("{} ({} threads)", cpu_name(), rayon::current_num_threads()),
+                device: format!(
+                    "{} ({} threads)",
+                    benches::cli::cpu_model(),
+                    rayon::current_num_threads()
+                ),
                 n,
                 precision: T::NAME,
                 seconds,

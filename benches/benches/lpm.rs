@@ -59,18 +59,6 @@ fn medium<T: Real>(n: usize, scale: f64) -> Medium<T> {
         .unwrap_or_else(|e| fail(&format!("{n}³ medium: {e}")))
 }
 
-fn cpu_name() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|s| s.trim().replace(',', " "))
-        })
-        .unwrap_or_else(|| "cpu".into())
-}
-
 struct Row {
     n: usize,
     precision: &'static str,
@@ -231,7 +219,7 @@ fn main() {
             r.n,
             r.precision,
             rayon::current_num_threads(),
-            cpu_name(),
+            benches::cli::cpu_model(),
             r.setup_seconds,
             r.seconds,
             r.segments / 3, // per order (3 orders), per channel

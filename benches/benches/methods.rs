@@ -38,19 +38,6 @@ const SUMMARY_RUNS: usize = 3;
 const CSV_PATH: &str = "results/bench/methods.csv";
 const CSV_HEADER: &str = "n,method,backend,timer,ms_per_step,mvox_per_s,effective_gbs,probe,probe_gbs,ratio_probe,cpu,adapter";
 
-/// The CPU model (`/proc/cpuinfo`), or `unknown`; commas replaced (it goes into a CSV cell).
-fn cpu_model() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().replace(',', " "))
-        })
-        .unwrap_or_else(|| "unknown".into())
-}
-
 fn methods() -> Vec<Box<dyn Method>> {
     method::METHODS
         .iter()
@@ -130,7 +117,7 @@ fn main() {
         return;
     }
 
-    let cpu = cpu_model();
+    let cpu = benches::cli::cpu_model();
     let mut csv = format!("{CSV_HEADER}\n");
     println!("\nmethods bench summary ({SUMMARY_STEPS} steps, median of {SUMMARY_RUNS} solves)");
     for b in &backends {

@@ -155,6 +155,20 @@ pub mod cli {
 
     use std::path::PathBuf;
 
+    /// The CPU model from `/proc/cpuinfo` (`unknown` where there is none), commas replaced
+    /// by spaces so it fits a CSV cell: every summary CSV names the machine it came from.
+    pub fn cpu_model() -> String {
+        std::fs::read_to_string("/proc/cpuinfo")
+            .ok()
+            .and_then(|s| {
+                s.lines()
+                    .find(|l| l.starts_with("model name"))
+                    .and_then(|l| l.split(':').nth(1))
+                    .map(|m| m.trim().replace(',', " "))
+            })
+            .unwrap_or_else(|| "unknown".into())
+    }
+
     /// Prints `bench: message` and exits with status 2 (a bench has no caller to return to).
     pub fn fail(bench: &str, message: &str) -> ! {
         eprintln!("{bench} bench: {message}");

@@ -534,6 +534,12 @@ fn bench() -> String {
                 r.fixed("effective_gbs", 1),
                 r.fixed("triad_gbs", 1),
                 r.fixed("ratio_triad", 2),
+                r.fixed("triad_dram_gbs", 1),
+                r.fixed("ratio_triad_dram", 2),
+                match r.get("cpu") {
+                    "" => "—".to_string(),
+                    cpu => format!("{cpu} ({} threads)", r.get("threads")),
+                },
             ]
         });
         out.push_str(
@@ -548,8 +554,11 @@ fn bench() -> String {
                 "ms/iteration",
                 "Mvoxel/s",
                 "effective GB/s",
-                "STREAM triad GB/s",
+                "triad GB/s (same bytes)",
                 "÷ triad",
+                "STREAM-rule triad GB/s",
+                "÷ STREAM-rule triad",
+                "CPU",
             ],
             rows,
         ));

@@ -43,9 +43,12 @@
 //! `dense_half_space` 64 spp 0.071 s → 0.043 s (1.66×), `dense_voxel` 64 spp 0.0135 s →
 //! 0.0092 s (1.47×). Tried and not taken: f32 σt for lookups (3 % on the cloud: lookups
 //! are not bandwidth-bound), residual ratio tracking with a per-block control σt (no gain:
-//! few 8³ blocks have a minimum worth an extra `exp`), AVX2/FMA code generation
-//! (`-C target-cpu=x86-64-v3`: 3 %, bit-identical, not worth a non-portable binary), 4³
-//! or 2³ majorant blocks (slower: more walk steps than null collisions saved).
+//! few 8³ blocks have a minimum worth an extra `exp`), 4³ or 2³ majorant blocks (slower:
+//! more walk steps than null collisions saved). AVX2 code generation (`-C
+//! target-cpu=x86-64-v3`) gave the tracer only 3 % (bit-identical); the workspace now builds
+//! with it anyway (`.cargo/config.toml`) because the grid solvers' sweeps gain 1.5–1.9×
+//! from it (`solvers::fld`, "Code generation"), and the numbers above are from the SSE2
+//! baseline build.
 //!
 //! Units: lengths in the grid's units, σt in inverse length, emission j in power per volume
 //! (an isotropic source of radiance j/4π per unit length), light powers in watts; fluence in

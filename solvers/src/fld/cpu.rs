@@ -435,48 +435,61 @@ impl<T: Real> CpuFld<T> {
 
     /// D on the boundary layer (FLD only): F(R)/σ with ∇φ by one-sided differences where a
     /// neighbour is outside the grid (a decision of this crate, see [`super`]).
+    ///
+    /// Each boundary voxel reads φ (not updated here) and writes only its own D, so the
+    /// update runs in parallel over z-slabs and is bit-identical to any serial order. It was
+    /// serial until issue 15's bench: at 128³ FLD-LP it took 19 % of the CPU samples (35 %
+    /// of the wall time with the sweep on two threads) for 5 % of the voxels.
     fn update_boundary_d(&mut self) {
         let g = self.grid;
         let [nx, ny, nz] = g.n;
         let h = self.h;
+        let slab = ny * h;
         let lim = self.config.limiter;
         let p = self.params;
-        // Each boundary voxel reads φ (not updated here) and only its own D, so the
-        // update is written in place in any order.
-        let (phi, sig, d) = (&self.phi, &self.sig, &mut self.d);
+        let (phi, sig) = (&self.phi, &self.sig);
         let at = |i: usize, j: usize, k: usize| {
             let (c, q) = packed_index(&g, h, i, j, k);
             phi[c][q]
         };
-        let mut visit = |i: usize, j: usize, k: usize| {
-            let diff = |lo: [usize; 3], hi: [usize; 3], steps: usize| {
-                (at(hi[0], hi[1], hi[2]) - at(lo[0], lo[1], lo[2]))
-                    * p.inv_2dl
-                    * T::c(2.0 / steps as f64)
-            };
-            let axis = |x: usize, n: usize| (x.saturating_sub(1), (x + 1).min(n - 1));
-            let (xl, xr) = axis(i, nx);
-            let (yl, yr) = axis(j, ny);
-            let (zl, zr) = axis(k, nz);
-            let gx = diff([xl, j, k], [xr, j, k], xr - xl);
-            let gy = diff([i, yl, k], [i, yr, k], yr - yl);
-            let gz = diff([i, j, zl], [i, j, zr], zr - zl);
-            let gnorm = (gx * gx + gy * gy + gz * gz).sqrt();
-            let (c, q) = packed_index(&g, h, i, j, k);
-            let s = sig[c][q];
-            let r = gnorm.max(p.floor) / (s * phi[c][q]).max(p.floor);
-            d[c][q] = p.theta * (lim.eval(r) / s) + p.one_minus_theta * d[c][q];
-        };
-        for k in 0..nz {
-            for j in 0..ny {
-                if k == 0 || k + 1 == nz || j == 0 || j + 1 == ny {
-                    (0..nx).for_each(|i| visit(i, j, k));
-                } else {
-                    visit(0, j, k);
-                    visit(nx - 1, j, k);
+        let [d0, d1] = &mut self.d;
+        d0.par_chunks_mut(slab)
+            .zip(d1.par_chunks_mut(slab))
+            .enumerate()
+            .for_each(|(k, (s0, s1))| {
+                let mut visit = |i: usize, j: usize| {
+                    let diff = |lo: [usize; 3], hi: [usize; 3], steps: usize| {
+                        (at(hi[0], hi[1], hi[2]) - at(lo[0], lo[1], lo[2]))
+                            * p.inv_2dl
+                            * T::c(2.0 / steps as f64)
+                    };
+                    let axis = |x: usize, n: usize| (x.saturating_sub(1), (x + 1).min(n - 1));
+                    let (xl, xr) = axis(i, nx);
+                    let (yl, yr) = axis(j, ny);
+                    let (zl, zr) = axis(k, nz);
+                    let gx = diff([xl, j, k], [xr, j, k], xr - xl);
+                    let gy = diff([i, yl, k], [i, yr, k], yr - yl);
+                    let gz = diff([i, j, zl], [i, j, zr], zr - zl);
+                    let gnorm = (gx * gx + gy * gy + gz * gz).sqrt();
+                    let (c, q) = packed_index(&g, h, i, j, k);
+                    let s = sig[c][q];
+                    let r = gnorm.max(p.floor) / (s * phi[c][q]).max(p.floor);
+                    let d = if c == 0 {
+                        &mut s0[q - k * slab]
+                    } else {
+                        &mut s1[q - k * slab]
+                    };
+                    *d = p.theta * (lim.eval(r) / s) + p.one_minus_theta * *d;
+                };
+                for j in 0..ny {
+                    if k == 0 || k + 1 == nz || j == 0 || j + 1 == ny {
+                        (0..nx).for_each(|i| visit(i, j));
+                    } else {
+                        visit(0, j);
+                        visit(nx - 1, j);
+                    }
                 }
-            }
-        }
+            });
     }
 
     /// One colour pass over all interior voxels of colour `c`; returns Σ residual² over the

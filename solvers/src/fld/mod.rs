@@ -120,8 +120,8 @@
 //!   Larsen-2, sum, max) are evaluated branch-free with no libm call: LP is a Padé form of
 //!   its continued fraction for R ≤ 2 and the closed form with an inline polynomial exp
 //!   above, both computed and one selected, so the row loop of `cpu.rs` has no branch or
-//!   call left in it (default SSE2 target, no `target-cpu`, no runtime dispatch; the sweep's
-//!   loop structure is unchanged). Accuracy (tests in `limiter.rs`, 20001 log-spaced R in
+//!   call left in it (no runtime dispatch; the sweep's loop structure is unchanged; the
+//!   code-generation target is the next decision). Accuracy (tests in `limiter.rs`, 20001 log-spaced R in
 //!   [10⁻⁸, 10⁸] plus 0 and huge R): ≤ 4 ulp f32, ≤ 10⁻¹² f64 pinned. Bench
 //!   (`benches/benches/diffusion.rs`, vacuum cloud, 2-core AMD EPYC, 32 MiB L3, shared
 //!   machine: load 4 → 13.6 during the before run, 12.8 → 15.7 during the after run, so
@@ -134,6 +134,24 @@
 //!   run at 256³: FLD-LP f32 0.041 → 0.073, f64 0.073 → 0.102 (triad 5.7–7.8 GB/s under
 //!   that load instead of ~45 quiet). Issue 15's ≥ 0.4 is not shown by these runs
 //!   (`results/bench/diffusion_cpu.csv`, before: `diffusion_cpu_before_lim.csv`).
+//! * **Code generation and the boundary layer (issue 15 item 4;
+//!   `results/bench/diffusion_cpu.csv`, SSE2 run: `diffusion_cpu_sse2.csv`).** With the branch-free
+//!   limiter the LP sweep is compute-bound, not bandwidth-bound: at 256³ f32 it moved 4.6
+//!   GB/s of a 39 GB/s triad (`perf`: the row loop is vectorised, ~60 SSE instructions per
+//!   voxel, register spills). Two changes, each bit-identical (hash of φ, D and the residual
+//!   history after 30 iterations, every limiter, f32 and f64, 40×33×37 random medium):
+//!   (1) the boundary-layer D update ran serially and cost 19 % of the CPU samples at 128³
+//!   (12 % at 256³) for 5 % (2 %) of the voxels: it now runs in parallel over z-slabs
+//!   (`results_are_bit_identical_for_one_and_two_threads` in `cpu/tests.rs`); (2) the
+//!   workspace builds for x86-64-v3 (AVX2, `.cargo/config.toml`): 8 f32 lanes instead of 4.
+//!   One red-black iteration at 256³ (vacuum cloud, `cargo bench -p benches --bench
+//!   diffusion`, 2-vCPU AMD EPYC, 32 MiB L3, quiet), SSE2 → AVX2 build with (1) in both,
+//!   ms (÷ triad of the same run): CDA f32 51.3 (0.20) → 31.0 (0.46), FLD-LP f32 132.1
+//!   (0.12) → 87.3 (0.21), CDA f64 69.6 (0.42) → 47.4 (0.66), FLD-LP f64 259.3 (0.10) →
+//!   139.4 (0.27); triad 29–48 GB/s across the probes of those runs. Issue 15's targets
+//!   (FLD-LP ≥ 0.4, CDA ≥ 0.6 of triad) are met for CDA f64 only: FLD-LP does ~60
+//!   vector instructions per voxel (Padé + exp + 4 divisions + sqrt besides the stencil) on
+//!   two vCPUs, which at 0.4 of a 33 GB/s triad would have to retire in ~40 ms.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
