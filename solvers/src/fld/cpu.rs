@@ -441,13 +441,35 @@ impl<T: Real> CpuFld<T> {
     /// serial until issue 15's bench: at 128³ FLD-LP it took 19 % of the CPU samples (35 %
     /// of the wall time with the sweep on two threads) for 5 % of the voxels.
     fn update_boundary_d(&mut self) {
+        match self.config.limiter {
+            FluxLimiter::Cda => self.update_boundary_d_with(|r| FluxLimiter::Cda.eval(r)),
+            FluxLimiter::Sum => self.update_boundary_d_with(|r| FluxLimiter::Sum.eval(r)),
+            FluxLimiter::Max => self.update_boundary_d_with(|r| FluxLimiter::Max.eval(r)),
+            FluxLimiter::Kershaw => self.update_boundary_d_with(|r| FluxLimiter::Kershaw.eval(r)),
+            FluxLimiter::Larsen(2.0) => {
+                self.update_boundary_d_with(|r| FluxLimiter::Larsen(2.0).eval(r))
+            }
+            FluxLimiter::LevermorePomraning => {
+                self.update_boundary_d_with(|r| FluxLimiter::LevermorePomraning.eval(r))
+            }
+            other => self.update_boundary_d_with(move |r| other.eval(r)),
+        }
+    }
+
+    /// [`CpuFld::update_boundary_d`] with the limiter resolved at compile time.
+    fn update_boundary_d_with<L: Fn(T) -> T + Sync>(&mut self, lim: L) {
         let g = self.grid;
         let [nx, ny, nz] = g.n;
         let h = self.h;
         let slab = ny * h;
-        let lim = self.config.limiter;
         let p = self.params;
         let (phi, sig) = (&self.phi, &self.sig);
+        // 2/steps for a centred (2) or one-sided (1) difference, without a division.
+        let per_step = |steps: usize| match steps {
+            2 => T::one(),
+            1 => T::c(2.0),
+            _ => T::c(2.0 / steps as f64),
+        };
         let at = |i: usize, j: usize, k: usize| {
             let (c, q) = packed_index(&g, h, i, j, k);
             phi[c][q]
@@ -461,7 +483,7 @@ impl<T: Real> CpuFld<T> {
                     let diff = |lo: [usize; 3], hi: [usize; 3], steps: usize| {
                         (at(hi[0], hi[1], hi[2]) - at(lo[0], lo[1], lo[2]))
                             * p.inv_2dl
-                            * T::c(2.0 / steps as f64)
+                            * per_step(steps)
                     };
                     let axis = |x: usize, n: usize| (x.saturating_sub(1), (x + 1).min(n - 1));
                     let (xl, xr) = axis(i, nx);
@@ -479,7 +501,7 @@ impl<T: Real> CpuFld<T> {
                     } else {
                         &mut s1[q - k * slab]
                     };
-                    *d = p.theta * (lim.eval(r) / s) + p.one_minus_theta * *d;
+                    *d = p.theta * (lim(r) / s) + p.one_minus_theta * *d;
                 };
                 for j in 0..ny {
                     if k == 0 || k + 1 == nz || j == 0 || j + 1 == ny {

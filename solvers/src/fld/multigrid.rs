@@ -58,6 +58,24 @@
 //!   47.8 s vs 18 cycles 11.3 s. A CDA cycle still costs ≈ 15–18 SOR sweeps of wall time
 //!   (4.6 of them smoothing): the unpack/pack passes, residuals and transfers dominate, so
 //!   issue 15's ≥ 10× is not met.
+//! * **Cost per cycle, re-measured (2026-12-04, 2-vCPU AMD EPYC, quiet, AVX2 build,
+//!   `point_source --n 127 --boundary zero --tolerance 1e-6 --solver sor,multigrid --limiter
+//!   cda,lp`, every Fig 5 albedo, one run).** `perf` of the FLD-LP solve put 38 % of the
+//!   samples in `fresh_d` (a per-voxel index loop calling `lim.eval`), 22 % in the smoother,
+//!   10 % in the smoother's boundary-layer D and 8 % in `apply`; `fresh_d` and `apply` are
+//!   now row-sliced with the limiter dispatched once, and the boundary update runs in
+//!   parallel with no division: φ and every residual bit-identical (profiles and
+//!   `runs.csv` compared byte for byte), FLD-LP multigrid 6.6 → 4.2 s at α = 0.5. SOR vs
+//!   multigrid seconds (speed-up) at α = 0.1, 0.3, 0.5, 0.7, 0.9, 0.99: CDA 1.94/0.88
+//!   (2.2×), 1.61/0.70 (2.3×), 1.86/0.65 (2.9×), 1.40/0.65 (2.1×), 1.45/0.77 (1.9×),
+//!   1.33/0.73 (1.8×), always 8 cycles (36.6 work units vs 274–284 iterations); FLD-LP
+//!   18.6/4.54 (4.1×), 10.9/4.44 (2.5×), 11.3/4.19 (2.7×), 13.2/4.47 (2.9×), 15.4/4.23
+//!   (3.6×), 21.1/3.72 (5.7×), always 18 cycles (82.3 work units vs 472–974 iterations);
+//!   multigrid vs SOR relative L2 1.0–9.6·10⁻⁶ at this tolerance. 255³, α = 0.5: CDA SOR
+//!   551 it. 22.1 s vs 8 cycles 6.7 s (3.3×); FLD-LP SOR 2102 it. 312.8 s vs 25 cycles 48.0
+//!   s (6.5×). Issue 15's ≥ 10× is **not met**: the work-unit ratio is 7.5–7.8× (CDA) and
+//!   5.7–11.8× (FLD-LP) at 127³, 15× and 18× at 255³, so even a free cycle overhead would
+//!   not reach 10× for CDA at 127³; a cycle still costs about twice its smoothing.
 //! * **Known limitations (measured, not fixed).** Where vacuum (D = 1/(3σ_ε), a
 //!   near-perfect conductor) fills part of the grid, the rediscretised coarse CDA operator
 //!   does not approximate the fine one: CDA on the Fig 4 cloud (n = 17, 33) reduces the
@@ -67,7 +85,7 @@
 //!   stall on 95 %-vacuum noise (as SOR does). Operator-dependent (Galerkin-type) coarse
 //!   coefficients in vacuum are the candidate fix, not tried.
 //!
-use super::{Boundary, CpuFld, FldConfig, FldSolution};
+use super::{Boundary, CpuFld, FldConfig, FldSolution, FluxLimiter};
 use crate::fld::residual::ResidualWindow;
 use crate::gpu::Timer;
 use crate::method::Stop;
@@ -524,31 +542,82 @@ impl ErrorEstimate {
 }
 
 /// D = F(R)/σ from φ (FLD Eqs 33–35): centred ∇φ inside, one-sided on the Dirichlet layer.
+///
+/// The limiter is dispatched once here, so [`fresh_d_with`]'s interior row loop gets it
+/// inlined and vectorises. *Why*: with `lim.eval` in a per-voxel index loop this was 38 % of
+/// the CPU samples of a 127³ FLD-LP multigrid solve (the smoother 22 %); the values are
+/// bit-identical to that loop (same operations per voxel).
 fn fresh_d(g: &Grid, phi: &[f64], sig: &[f64], cfg: &FldConfig, floor: f64) -> Vec<f64> {
-    let [nx, ny, nz] = g.n;
     let lim = cfg.limiter;
-    if lim.is_constant() {
-        return sig.par_iter().map(|s| 1.0 / 3.0 / s).collect();
+    match lim {
+        FluxLimiter::Cda => sig.par_iter().map(|s| 1.0 / 3.0 / s).collect(),
+        FluxLimiter::Sum => fresh_d_with(g, phi, sig, floor, |r| FluxLimiter::Sum.eval(r)),
+        FluxLimiter::Max => fresh_d_with(g, phi, sig, floor, |r| FluxLimiter::Max.eval(r)),
+        FluxLimiter::Kershaw => fresh_d_with(g, phi, sig, floor, |r| FluxLimiter::Kershaw.eval(r)),
+        FluxLimiter::Larsen(2.0) => {
+            fresh_d_with(g, phi, sig, floor, |r| FluxLimiter::Larsen(2.0).eval(r))
+        }
+        FluxLimiter::LevermorePomraning => fresh_d_with(g, phi, sig, floor, |r| {
+            FluxLimiter::LevermorePomraning.eval(r)
+        }),
+        other => fresh_d_with(g, phi, sig, floor, move |r| other.eval(r)),
     }
+}
+
+/// [`fresh_d`] for one limiter `lim`: interior voxels of interior rows in a contiguous,
+/// vectorisable loop; the Dirichlet layer with one-sided differences.
+fn fresh_d_with<L: Fn(f64) -> f64 + Sync>(
+    g: &Grid,
+    phi: &[f64],
+    sig: &[f64],
+    floor: f64,
+    lim: L,
+) -> Vec<f64> {
+    let [nx, ny, nz] = g.n;
+    let plane = nx * ny;
     let inv_2dl = 0.5 / g.dl;
     let mut d = vec![0.0; g.len()];
-    d.par_chunks_mut(nx * ny).enumerate().for_each(|(k, slab)| {
-        let axis = |x: usize, n: usize| (x.saturating_sub(1), (x + 1).min(n - 1));
+    d.par_chunks_mut(plane).enumerate().for_each(|(k, slab)| {
+        let one_sided = |i: usize, j: usize| {
+            let axis = |x: usize, n: usize| (x.saturating_sub(1), (x + 1).min(n - 1));
+            let (xl, xr) = axis(i, nx);
+            let (yl, yr) = axis(j, ny);
+            let (zl, zr) = axis(k, nz);
+            let df = |a: usize, b: usize, steps: usize| {
+                (phi[b] - phi[a]) * inv_2dl * (2.0 / steps as f64)
+            };
+            let gx = df(g.index(xl, j, k), g.index(xr, j, k), xr - xl);
+            let gy = df(g.index(i, yl, k), g.index(i, yr, k), yr - yl);
+            let gz = df(g.index(i, j, zl), g.index(i, j, zr), zr - zl);
+            let n = g.index(i, j, k);
+            let r = (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (sig[n] * phi[n]).max(floor);
+            lim(r) / sig[n]
+        };
         for j in 0..ny {
-            for i in 0..nx {
-                let (xl, xr) = axis(i, nx);
-                let (yl, yr) = axis(j, ny);
-                let (zl, zr) = axis(k, nz);
-                let df = |a: usize, b: usize, steps: usize| {
-                    (phi[b] - phi[a]) * inv_2dl * (2.0 / steps as f64)
-                };
-                let gx = df(g.index(xl, j, k), g.index(xr, j, k), xr - xl);
-                let gy = df(g.index(i, yl, k), g.index(i, yr, k), yr - yl);
-                let gz = df(g.index(i, j, zl), g.index(i, j, zr), zr - zl);
-                let n = g.index(i, j, k);
-                let r =
-                    (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (sig[n] * phi[n]).max(floor);
-                slab[j * nx + i] = lim.eval(r) / sig[n];
+            let row = &mut slab[j * nx..(j + 1) * nx];
+            if k == 0 || k + 1 == nz || j == 0 || j + 1 == ny || nx < 3 {
+                for (i, x) in row.iter_mut().enumerate() {
+                    *x = one_sided(i, j);
+                }
+                continue;
+            }
+            row[0] = one_sided(0, j);
+            row[nx - 1] = one_sided(nx - 1, j);
+            // Interior i = 1..nx − 1 of row (j, k): centred differences (the one-sided rule's
+            // factor 2/steps is exactly 1 there).
+            let c = g.index(1, j, k);
+            let len = nx - 2;
+            let cut = |start: usize| &phi[start..start + len];
+            let (p, xm, xp) = (cut(c), cut(c - 1), cut(c + 1));
+            let (ym, yp, zm, zp) = (cut(c - nx), cut(c + nx), cut(c - plane), cut(c + plane));
+            let s = &sig[c..c + len];
+            let out = &mut row[1..nx - 1];
+            for q in 0..len {
+                let gx = (xp[q] - xm[q]) * inv_2dl;
+                let gy = (yp[q] - ym[q]) * inv_2dl;
+                let gz = (zp[q] - zm[q]) * inv_2dl;
+                let r = (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (s[q] * p[q]).max(floor);
+                out[q] = lim(r) / s[q];
             }
         }
     });
@@ -556,33 +625,43 @@ fn fresh_d(g: &Grid, phi: &[f64], sig: &[f64], cfg: &FldConfig, floor: f64) -> V
 }
 
 /// L(φ) of FLD Eq 32 (per unit volume, normalised units) at interior voxels, 0 on the layer.
+///
+/// Row-sliced so the loop vectorises (the neighbour sums keep the order x−, x+, y−, y+, z−,
+/// z+, so the values are bit-identical to the per-voxel index loop this replaced, which was
+/// 8 % of a 127³ FLD-LP multigrid solve).
 fn apply(g: &Grid, phi: &[f64], d: &[f64], absorb: &[f64]) -> Vec<f64> {
     let [nx, ny, nz] = g.n;
     let inv_dl2 = 1.0 / (g.dl * g.dl);
-    let (sx, sy, sz) = (1, nx, nx * ny);
+    let plane = nx * ny;
     let mut out = vec![0.0; g.len()];
-    out.par_chunks_mut(nx * ny)
-        .enumerate()
-        .for_each(|(k, slab)| {
-            if k == 0 || k + 1 == nz {
-                return;
-            }
-            for j in 1..ny - 1 {
-                for i in 1..nx - 1 {
-                    let p = g.index(i, j, k);
-                    let nb = [p - sx, p + sx, p - sy, p + sy, p - sz, p + sz];
-                    let (mut sphi, mut sdphi, mut sd) = (0.0, 0.0, 0.0);
-                    for &q in &nb {
-                        sphi += phi[q];
-                        sdphi += d[q] * phi[q];
-                        sd += d[q];
-                    }
-                    let den = absorb[p] + 0.5 * (6.0 * d[p] + sd);
-                    let num = 0.5 * (d[p] * sphi + sdphi);
-                    slab[j * nx + i] = (phi[p] * den - num) * inv_dl2;
+    if nx < 3 {
+        return out;
+    }
+    out.par_chunks_mut(plane).enumerate().for_each(|(k, slab)| {
+        if k == 0 || k + 1 == nz {
+            return;
+        }
+        for j in 1..ny - 1 {
+            let c = g.index(1, j, k);
+            let len = nx - 2;
+            let offsets = [c - 1, c + 1, c - nx, c + nx, c - plane, c + plane];
+            let np = offsets.map(|o| &phi[o..o + len]);
+            let nd = offsets.map(|o| &d[o..o + len]);
+            let (pp, dp, ap) = (&phi[c..c + len], &d[c..c + len], &absorb[c..c + len]);
+            let row = &mut slab[j * nx + 1..j * nx + 1 + len];
+            for q in 0..len {
+                let (mut sphi, mut sdphi, mut sd) = (0.0, 0.0, 0.0);
+                for n in 0..6 {
+                    sphi += np[n][q];
+                    sdphi += nd[n][q] * np[n][q];
+                    sd += nd[n][q];
                 }
+                let den = ap[q] + 0.5 * (6.0 * dp[q] + sd);
+                let num = 0.5 * (dp[q] * sphi + sdphi);
+                row[q] = (pp[q] * den - num) * inv_dl2;
             }
-        });
+        }
+    });
     out
 }
 
