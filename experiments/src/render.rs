@@ -117,6 +117,38 @@ pub struct Args {
     /// reported in plan.json). Grid methods only.
     #[arg(long, value_parser = crate::common::count_usize)]
     pub max_iterations: Option<usize>,
+    /// Solver of a `cda`/`fld` method: `sor` (red-black SOR, FLD Algorithm 1, the default)
+    /// or `multigrid` (FAS V(2,2), `solvers::fld::multigrid`, CPU only; the same as the
+    /// method's `:mg` variant). Other methods have their own scheme and refuse it.
+    #[arg(long, value_enum)]
+    pub solver: Option<crate::point_source::SolverArg>,
+}
+
+/// `method` with `--solver` applied: `multigrid` appends the `:mg` variant to a `cda`/`fld`
+/// method (unchanged if it has it), `sor` refuses a method that names `:mg`.
+pub fn method_with_solver(
+    method: &str,
+    solver: Option<crate::point_source::SolverArg>,
+) -> Result<String> {
+    use crate::point_source::SolverArg;
+    let m = method.trim();
+    let mut tokens = m.split(':');
+    let base = tokens.next().unwrap_or("").to_ascii_lowercase();
+    let has_mg = tokens.any(|t| t.eq_ignore_ascii_case("mg"));
+    let diffusion = base == "cda" || base == "fld";
+    match solver {
+        None => Ok(m.to_string()),
+        Some(_) if !diffusion => bail!(
+            "--solver applies to the cda and fld methods only (SOR or multigrid); --method \
+             `{m}` has its own scheme"
+        ),
+        Some(SolverArg::Multigrid) if has_mg => Ok(m.to_string()),
+        Some(SolverArg::Multigrid) => Ok(format!("{m}:mg")),
+        Some(SolverArg::Sor) if has_mg => {
+            bail!("--solver sor with --method `{m}`: the `:mg` variant is the multigrid solver")
+        }
+        Some(SolverArg::Sor) => Ok(m.to_string()),
+    }
 }
 
 /// The finest raymarch sub-step `--step` accepts, in voxels.
@@ -143,6 +175,7 @@ impl Args {
             (!self.param.is_empty(), "--param"),
             (self.tolerance.is_some(), "--tolerance"),
             (self.max_iterations.is_some(), "--max-iterations"),
+            (self.solver.is_some(), "--solver"),
         ] {
             if given {
                 v.push(name);
@@ -277,8 +310,13 @@ pub fn run_with(
     if let Some(w) = args.omega {
         params = params.with("omega", w);
     }
-    let renderer = Renderer::parse_with(&args.method, &params)
-        .with_context(|| format!("--method `{}`", args.method))?;
+    let method = if pt {
+        args.method.clone()
+    } else {
+        method_with_solver(&args.method, args.solver)?
+    };
+    let renderer =
+        Renderer::parse_with(&method, &params).with_context(|| format!("--method `{method}`"))?;
     let defaults = PipelineConfig::default();
     let downsample = args.downsample.unwrap_or(defaults.downsample);
     let step = args.step.unwrap_or(defaults.step);
@@ -426,6 +464,7 @@ pub fn run_with(
         "precision": precision_arg.name(), "step": step, "pixel_samples": pixel_samples,
         "shadows": value_names(&[shadows_arg]), "omega": args.omega, "quick": quick,
         "tolerance": tolerance, "max_iterations": max_iterations,
+        "solver": args.solver.map(|s| value_names(&[s])), "resolved_method": method,
     }))?;
     let [w, h] = camera.resolution;
     // φ of every channel's multiple-scattering solve as one `.vol` grid (grid methods only).
