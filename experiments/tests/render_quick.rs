@@ -118,31 +118,26 @@ fn render_rejects_bad_flags() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `render --quick` of cloud_directional with `--method`, `--solver` and `extra` flags.
+fn solver_args(method: &str, solver: &str, dir: &std::path::Path, extra: &[&str]) -> render::Args {
+    let scene = scene("cloud_directional.toml");
+    let mut argv = vec!["render", "--quick", "--no-progress", "--scene", &scene];
+    argv.extend(["--method", method, "--solver", solver, "--out"]);
+    argv.push(dir.to_str().unwrap());
+    argv.extend(extra);
+    render::Args::parse_from(argv)
+}
+
 /// `--solver multigrid` solves the same diffusion as SOR: FLD-LP's multiple-scattering images
-/// agree to 1e-6 relative (RMS over pixels, both converged to 1e-8; measured 6.2e-9) and the plan names the
-/// `:mg` method; CDA multigrid on this cloud reports `stalled`, never `converged`. Bad
+/// agree to 1e-6 relative (RMS over pixels, both converged to 1e-8; measured 6.2e-9) and
+/// the plan names the `:mg` method; CDA multigrid on this cloud reports `stalled`, never `converged`. Bad
 /// combinations are errors that name the flag.
 #[test]
 fn render_solver_multigrid_matches_sor() {
     for method in ["fld", "cda"] {
         let render_with = |solver: &str| {
             let dir = tmp(&format!("solver-{method}-{solver}"));
-            let args = render::Args::parse_from([
-                "render",
-                "--quick",
-                "--no-progress",
-                "--scene",
-                &scene("cloud_directional.toml"),
-                "--method",
-                method,
-                "--solver",
-                solver,
-                "--tolerance",
-                "1e-8",
-                "--out",
-                dir.to_str().unwrap(),
-            ]);
-            render::run(&args).unwrap();
+            render::run(&solver_args(method, solver, &dir, &["--tolerance", "1e-8"])).unwrap();
             let plan: serde_json::Value =
                 serde_json::from_str(&std::fs::read_to_string(dir.join("plan.json")).unwrap())
                     .unwrap();
@@ -182,20 +177,10 @@ fn render_solver_multigrid_matches_sor() {
         ("fld:mg", "sor", "--solver sor"),
         ("pt", "multigrid", "--solver"),
     ] {
-        let args = render::Args::parse_from([
-            "render",
-            "--quick",
-            "--no-progress",
-            "--scene",
-            &scene("cloud_directional.toml"),
-            "--method",
-            method,
-            "--solver",
-            solver,
-            "--out",
-            dir.to_str().unwrap(),
-        ]);
-        let e = format!("{:#}", render::run(&args).unwrap_err());
+        let e = format!(
+            "{:#}",
+            render::run(&solver_args(method, solver, &dir, &[])).unwrap_err()
+        );
         assert!(e.contains(needle), "{method} {solver}: {e}");
     }
     std::fs::remove_dir_all(&dir).ok();

@@ -48,3 +48,19 @@ pub use grid::Grid;
 pub use medium::Medium;
 pub use method::{Method, MethodRef, Problem, Solution, Stop, Tolerance};
 pub use real::Real;
+
+#[cfg(test)]
+pub(crate) mod test_util {
+    //! Helpers shared by the unit tests of several modules.
+
+    /// Runs `f` in a fresh rayon pool of `threads` threads (the determinism tests compare
+    /// one thread with several).
+    #[allow(clippy::unwrap_used)]
+    pub(crate) fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+}

@@ -303,11 +303,9 @@ fn bit_identical_for_any_thread_count() {
         )
         .fixed_steps(20);
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| CpuLbm::<f32>::new(&medium, &inj, &cfg).unwrap().solve())
+        crate::test_util::with_threads(threads, || {
+            CpuLbm::<f32>::new(&medium, &inj, &cfg).unwrap().solve()
+        })
     };
     let (a, b) = (run(1), run(2));
     assert_eq!(a.phi, b.phi);

@@ -813,11 +813,9 @@ fn t23_deterministic_for_any_thread_count() {
     let dirs = Directions::new(5).unwrap();
     let b = BoundaryLight::uniform(&dirs, 1.0);
     let solve_in = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| run(Precision::F32, &medium, &b, &LpmConfig::default()))
+        crate::test_util::with_threads(threads, || {
+            run(Precision::F32, &medium, &b, &LpmConfig::default())
+        })
     };
     let (a, c) = (solve_in(1), solve_in(2));
     assert_eq!(a.intensity, c.intensity);

@@ -659,11 +659,7 @@ fn results_do_not_depend_on_the_thread_count() {
     let mut cfg = PopConfig::new::<f32>(9);
     cfg.observer = Some(Observer::Point([2.0, 2.0, 2.0]));
     let run = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| solve::<f32>(&m, &ords, &cfg).unwrap())
+        crate::test_util::with_threads(threads, || solve::<f32>(&m, &ords, &cfg).unwrap())
     };
     let (one, three) = (run(1), run(3));
     for (a, b) in one.runs.iter().zip(&three.runs) {

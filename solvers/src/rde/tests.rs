@@ -158,11 +158,7 @@ fn results_do_not_depend_on_the_thread_count() {
     let coef = random_coef([23, 19, 21], 3, 0.01, 0.3);
     let cfg = RdeConfig::default().steady(0.0, 50);
     let on = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| CpuRde::<f32>::new(&coef, &cfg).unwrap().run())
+        crate::test_util::with_threads(threads, || CpuRde::<f32>::new(&coef, &cfg).unwrap().run())
     };
     let (a, b) = (on(1), on(3));
     assert_eq!(a.phi, b.phi);

@@ -471,11 +471,7 @@ fn results_are_bit_identical_for_one_and_two_threads() {
             ..FldConfig::default()
         };
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            crate::test_util::with_threads(threads, || {
                 let mut s = CpuFld::new(&medium, &Boundary::Zero, &cfg).unwrap();
                 for _ in 0..25 {
                     s.iterate();
