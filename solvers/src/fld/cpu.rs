@@ -438,22 +438,10 @@ impl<T: Real> CpuFld<T> {
     ///
     /// Each boundary voxel reads φ (not updated here) and writes only its own D, so the
     /// update runs in parallel over z-slabs and is bit-identical to any serial order. It was
-    /// serial until issue 15's bench: at 128³ FLD-LP it took 19 % of the CPU samples (35 %
-    /// of the wall time with the sweep on two threads) for 5 % of the voxels.
+    /// serial until issue 15's bench: at 128³ FLD-LP it took 19 % of the CPU samples (`perf`)
+    /// for 5 % of the voxels.
     fn update_boundary_d(&mut self) {
-        match self.config.limiter {
-            FluxLimiter::Cda => self.update_boundary_d_with(|r| FluxLimiter::Cda.eval(r)),
-            FluxLimiter::Sum => self.update_boundary_d_with(|r| FluxLimiter::Sum.eval(r)),
-            FluxLimiter::Max => self.update_boundary_d_with(|r| FluxLimiter::Max.eval(r)),
-            FluxLimiter::Kershaw => self.update_boundary_d_with(|r| FluxLimiter::Kershaw.eval(r)),
-            FluxLimiter::Larsen(2.0) => {
-                self.update_boundary_d_with(|r| FluxLimiter::Larsen(2.0).eval(r))
-            }
-            FluxLimiter::LevermorePomraning => {
-                self.update_boundary_d_with(|r| FluxLimiter::LevermorePomraning.eval(r))
-            }
-            other => self.update_boundary_d_with(move |r| other.eval(r)),
-        }
+        super::limiter::with_limiter!(self.config.limiter, |lim| self.update_boundary_d_with(lim))
     }
 
     /// [`CpuFld::update_boundary_d`] with the limiter resolved at compile time.

@@ -31,6 +31,45 @@ use crate::{Real, SolverError};
 use std::fmt;
 use std::str::FromStr;
 
+/// Expands `$body` once per limiter with `$f` bound to a closure that evaluates it
+/// ([`FluxLimiter::eval`]), so a generic loop taking `$f` gets the limiter inlined: the match
+/// runs once per call, not per voxel. Larsen with n ≠ 2 keeps the general `eval`.
+macro_rules! with_limiter {
+    ($lim:expr, |$f:ident| $body:expr) => {
+        match $lim {
+            FluxLimiter::Cda => {
+                let $f = |r| FluxLimiter::Cda.eval(r);
+                $body
+            }
+            FluxLimiter::Sum => {
+                let $f = |r| FluxLimiter::Sum.eval(r);
+                $body
+            }
+            FluxLimiter::Max => {
+                let $f = |r| FluxLimiter::Max.eval(r);
+                $body
+            }
+            FluxLimiter::Kershaw => {
+                let $f = |r| FluxLimiter::Kershaw.eval(r);
+                $body
+            }
+            FluxLimiter::Larsen(2.0) => {
+                let $f = |r| FluxLimiter::Larsen(2.0).eval(r);
+                $body
+            }
+            FluxLimiter::LevermorePomraning => {
+                let $f = |r| FluxLimiter::LevermorePomraning.eval(r);
+                $body
+            }
+            other => {
+                let $f = move |r| other.eval(r);
+                $body
+            }
+        }
+    };
+}
+pub(crate) use with_limiter;
+
 /// The flux limiter F(R) (FLD Table 2) and, as the constant case, classical diffusion.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FluxLimiter {

@@ -139,9 +139,11 @@
 //!   limiter the LP sweep is compute-bound, not bandwidth-bound: at 256³ f32 it moved 4.6
 //!   GB/s of a 39 GB/s triad (`perf`: the row loop is vectorised, ~60 SSE instructions per
 //!   voxel, register spills). Two changes, each bit-identical (hash of φ, D and the residual
-//!   history after 30 iterations, every limiter, f32 and f64, 40×33×37 random medium):
+//!   history after 30 iterations, every limiter, f32 and f64, 40×33×37 random medium; an
+//!   ad-hoc example built under both targets, not kept):
 //!   (1) the boundary-layer D update ran serially and cost 19 % of the CPU samples at 128³
-//!   (12 % at 256³) for 5 % (2 %) of the voxels: it now runs in parallel over z-slabs
+//!   for 5 % of the voxels (still 12 % at 256³, 2 % of the voxels, once parallel: it reads
+//!   scattered cache lines): it now runs in parallel over z-slabs
 //!   (`results_are_bit_identical_for_one_and_two_threads` in `cpu/tests.rs`); (2) the
 //!   workspace builds for x86-64-v3 (AVX2, `.cargo/config.toml`): 8 f32 lanes instead of 4.
 //!   One red-black iteration at 256³ (vacuum cloud, `cargo bench -p benches --bench

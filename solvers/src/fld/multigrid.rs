@@ -75,7 +75,8 @@
 //!   551 it. 22.1 s vs 8 cycles 6.7 s (3.3×); FLD-LP SOR 2102 it. 312.8 s vs 25 cycles 48.0
 //!   s (6.5×). Issue 15's ≥ 10× is **not met**: the work-unit ratio is 7.5–7.8× (CDA) and
 //!   5.7–11.8× (FLD-LP) at 127³, 15× and 18× at 255³, so even a free cycle overhead would
-//!   not reach 10× for CDA at 127³; a cycle still costs about twice its smoothing.
+//!   not reach 10× for CDA at 127³; a cycle still costs 2.2× (FLD-LP) to 2.6× (CDA) its
+//!   smoothing (work units × SOR's seconds per iteration, α = 0.5).
 //! * **Known limitations (measured, not fixed).** Where vacuum (D = 1/(3σ_ε), a
 //!   near-perfect conductor) fills part of the grid, the rediscretised coarse CDA operator
 //!   does not approximate the fine one: CDA on the Fig 4 cloud (n = 17, 33) reduces the
@@ -548,20 +549,10 @@ impl ErrorEstimate {
 /// the CPU samples of a 127³ FLD-LP multigrid solve (the smoother 22 %); the values are
 /// bit-identical to that loop (same operations per voxel).
 fn fresh_d(g: &Grid, phi: &[f64], sig: &[f64], cfg: &FldConfig, floor: f64) -> Vec<f64> {
-    let lim = cfg.limiter;
-    match lim {
-        FluxLimiter::Cda => sig.par_iter().map(|s| 1.0 / 3.0 / s).collect(),
-        FluxLimiter::Sum => fresh_d_with(g, phi, sig, floor, |r| FluxLimiter::Sum.eval(r)),
-        FluxLimiter::Max => fresh_d_with(g, phi, sig, floor, |r| FluxLimiter::Max.eval(r)),
-        FluxLimiter::Kershaw => fresh_d_with(g, phi, sig, floor, |r| FluxLimiter::Kershaw.eval(r)),
-        FluxLimiter::Larsen(2.0) => {
-            fresh_d_with(g, phi, sig, floor, |r| FluxLimiter::Larsen(2.0).eval(r))
-        }
-        FluxLimiter::LevermorePomraning => fresh_d_with(g, phi, sig, floor, |r| {
-            FluxLimiter::LevermorePomraning.eval(r)
-        }),
-        other => fresh_d_with(g, phi, sig, floor, move |r| other.eval(r)),
+    if cfg.limiter.is_constant() {
+        return sig.par_iter().map(|s| 1.0 / 3.0 / s).collect();
     }
+    super::limiter::with_limiter!(cfg.limiter, |lim| fresh_d_with(g, phi, sig, floor, lim))
 }
 
 /// [`fresh_d`] for one limiter `lim`: interior voxels of interior rows in a contiguous,
