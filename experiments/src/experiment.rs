@@ -308,6 +308,7 @@ pub static EXPERIMENTS: &[ExperimentEntry] = &[
     ExperimentEntry::of::<crate::point_source::PointSource>(),
     ExperimentEntry::of::<crate::convergence::Convergence>(),
     ExperimentEntry::of::<crate::convergence_check::ConvergenceCheck>(),
+    ExperimentEntry::of::<crate::multigrid_scaling::MultigridScaling>(),
     ExperimentEntry::of::<crate::emissive_cube::EmissiveCube>(),
     ExperimentEntry::of::<crate::lbm_convergence::LbmConvergence>(),
     ExperimentEntry::of::<crate::lbm_diffusion_limit::LbmDiffusionLimit>(),

@@ -23,6 +23,7 @@ pub mod lpm_cases;
 pub mod lpm_memory;
 pub mod methods;
 pub mod mitsuba_compare;
+pub mod multigrid_scaling;
 pub mod plot;
 pub mod point_source;
 pub mod point_source_analytic;

@@ -6,16 +6,21 @@
 //! For every scene and albedo α (the albedo of every voxel with σt > 0 set to α, in every
 //! colour channel), the reference is the path tracer's component images
 //! (`reference::effects::render_components`, `--spp` samples per pixel). Each grid method
-//! (`--methods`, default `cda,fld:lp`) renders at each downsampling factor (`--downsample`,
-//! default `1,4`: full and quarter resolution).
+//! (`--methods`, default `cda,fld:lp,cda:marshak,fld:lp:marshak`: both with the paper's
+//! medium–vacuum face and with the Marshak face, issue 15 acceptance 6) renders at each
+//! downsampling factor (`--downsample`, default `1,4`: full and quarter resolution). A method
+//! that does not run on a backend (the Marshak face is CPU-only) is skipped there, with a
+//! warning and a `skipped` entry in `meta.json`.
 //!
 //! **Outputs** (`results/renderings/`):
 //! * `errors.csv`: `scene,albedo,method,downsample,backend,error,error_single,error_multiple,
 //!   reference_noise,reference_noise_multiple,seconds,diffusion_seconds,iterations` — relative
 //!   RMSEs (see [`crate::images`]) of the total image and of the single- and
 //!   multiple-scattering components against the reference's;
-//! * `claim.csv`: per scene and albedo ≥ 0.5 and downsampling factor, FLD-LP's and CDA's
-//!   multiple-scattering errors and which is lower (FLD Section 6.2's claim);
+//! * `claim.csv`: per scene and albedo ≥ 0.5, downsampling factor and vacuum face
+//!   (`boundary`: `paper` pairs `fld:lp` with `cda`, `marshak` pairs `fld:lp:marshak` with
+//!   `cda:marshak`), FLD-LP's and CDA's multiple-scattering errors and which is lower (FLD
+//!   Section 6.2's claim, and whether it survives a proper boundary for CDA);
 //! * `quarter.csv`: per scene, albedo and method, the diffusion-solve seconds at full and
 //!   at the coarsest resolution, their ratio, and the errors of both (FLD Fig 6);
 //! * `<scene>_a<albedo>.png`: reference | each method and factor, one exposure;
@@ -58,7 +63,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>)]
     pub albedo: Option<Vec<f64>>,
     /// Grid methods, comma-separated: any registered method (see `render --help`).
-    #[arg(long, default_value = "cda,fld:lp", long_help = format!("Grid methods, comma-separated; {}", solvers::method::names()))]
+    #[arg(long, default_value = "cda,fld:lp,cda:marshak,fld:lp:marshak", long_help = format!("Grid methods, comma-separated; {}", solvers::method::names()))]
     pub methods: String,
     /// Diffusion downsampling factors (1 = full resolution).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<usize>, default_value = "1,4")]
@@ -133,6 +138,8 @@ pub struct ClaimRow {
     pub reference_noise_multiple: f64,
     /// Whether FLD-LP's error is the lower one.
     pub fld_lower: bool,
+    /// The medium–vacuum face of both: `paper` or `marshak`.
+    pub boundary: String,
 }
 
 /// One row of `quarter.csv`.
@@ -233,7 +240,6 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
         .map(|p| load(p, coarsen, resolution))
         .collect::<Result<Vec<_>>>()?;
     let mut work = crate::cost::Estimate::new();
-    let nb = backends.list(Precision::F32).len() as f64;
     for scene in &prepared {
         let reference = crate::cost::pt_render(&scene.channels, &scene.effects, spp);
         work.add(
@@ -251,6 +257,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
                     &scene.channels,
                     &grid_config(m, k, args.tolerance),
                 );
+                let nb = backends
+                    .list(Precision::F32)
+                    .iter()
+                    .filter(|b| m.capabilities().supports(b))
+                    .count() as f64;
                 work.add(
                     format!("{}: {m} ds={k}, {runs} albedos", scene.name),
                     one * runs * nb,
@@ -263,6 +274,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
     let out = ctx;
     out.record("backends", backends.meta());
     let mut rows = Vec::new();
+    let mut skipped: Vec<(String, String)> = Vec::new();
     for scene in &mut prepared {
         let bar = progress(albedos.len() as u64, &args.common, &scene.name);
         for &albedo in &albedos {
@@ -293,6 +305,13 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
             let mut renders: Vec<(String, usize, Vec<ChannelImages>)> = Vec::new();
             for b in backends.list(Precision::F32) {
                 for m in &methods {
+                    if !m.capabilities().supports(&b) {
+                        if !skipped.contains(&(m.to_string(), b.to_string())) {
+                            eprintln!("renderings: {m} does not run on {b}; skipped there");
+                            skipped.push((m.to_string(), b.to_string()));
+                        }
+                        continue;
+                    }
                     for &k in &factors {
                         if k == 1 && !full_at.contains(&albedo) {
                             continue;
@@ -340,6 +359,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Outcome> {
             bar.inc(1);
         }
         bar.finish_and_clear();
+    }
+    if !skipped.is_empty() {
+        let list: Vec<String> = skipped.iter().map(|(m, b)| format!("{m} on {b}")).collect();
+        out.record("skipped", serde_json::json!(list));
     }
     let outcome = Outcome {
         claim: claim(&rows),
@@ -410,7 +433,13 @@ fn write_images(
     Ok(())
 }
 
-/// FLD-LP vs CDA multiple-scattering errors at albedo ≥ 0.5 (CPU rows).
+/// The (CDA, FLD-LP) pairs of `claim.csv`, one per medium–vacuum face.
+const CLAIM_PAIRS: [(&str, &str, &str); 2] = [
+    ("cda", "fld:lp", "paper"),
+    ("cda:marshak", "fld:lp:marshak", "marshak"),
+];
+
+/// FLD-LP vs CDA multiple-scattering errors at albedo ≥ 0.5 (CPU rows), per vacuum face.
 pub fn claim(rows: &[ErrorRow]) -> Vec<ClaimRow> {
     let find = |r: &ErrorRow, m: &str| {
         rows.iter().find(|x| {
@@ -421,19 +450,22 @@ pub fn claim(rows: &[ErrorRow]) -> Vec<ClaimRow> {
                 && x.method == m
         })
     };
-    rows.iter()
-        .filter(|r| r.method == "cda" && r.albedo >= 0.5 && r.backend.starts_with("cpu"))
-        .filter_map(|cda| {
-            let fld = find(cda, "fld:lp")?;
-            Some(ClaimRow {
-                scene: cda.scene.clone(),
-                albedo: cda.albedo,
-                downsample: cda.downsample,
-                fld_lp_error_multiple: fld.error_multiple,
-                cda_error_multiple: cda.error_multiple,
-                reference_noise_multiple: cda.reference_noise_multiple,
-                fld_lower: fld.error_multiple < cda.error_multiple,
-            })
+    CLAIM_PAIRS
+        .iter()
+        .flat_map(|&(c, f, boundary)| {
+            rows.iter()
+                .filter(move |r| r.method == c && r.albedo >= 0.5 && r.backend.starts_with("cpu"))
+                .filter_map(move |cda| Some((find(cda, f)?, cda, boundary)))
+        })
+        .map(|(fld, cda, boundary)| ClaimRow {
+            scene: cda.scene.clone(),
+            albedo: cda.albedo,
+            downsample: cda.downsample,
+            fld_lp_error_multiple: fld.error_multiple,
+            cda_error_multiple: cda.error_multiple,
+            reference_noise_multiple: cda.reference_noise_multiple,
+            fld_lower: fld.error_multiple < cda.error_multiple,
+            boundary: boundary.to_string(),
         })
         .collect()
 }
@@ -480,6 +512,7 @@ const CLAIM_COLUMNS: &[&str] = &[
     "cda_error_multiple",
     "reference_noise_multiple",
     "fld_lower",
+    "boundary",
 ];
 
 impl Experiment for Renderings {
@@ -557,13 +590,17 @@ impl Experiment for Renderings {
              and emission components. Errors are relative RMSEs over all pixels and channels (`errors.csv` has every \
              run). Images `<scene>_a<α>.png`: reference | CDA and FLD-LP at each factor, one exposure; `_error.png`: \
              signed multiple-scattering error.\n\n\
-             ### FLD's claim (Section 6.2): FLD-LP's multiple-scattering error below CDA's at albedo ≥ 0.5\n\n",
+             ### FLD's claim (Section 6.2): FLD-LP's multiple-scattering error below CDA's at albedo ≥ 0.5\n\n\
+             Vacuum face `paper`: FLD's D_ps = (D_p + D_s)/2 with the floors of FLD Eqs 33/35 (CDA's vacuum D \
+             pins the surface to φ ≈ 0); `marshak`: both methods with the Marshak (partial-current) face \
+             (`cda:marshak`, `fld:lp:marshak`; `solvers::fld` module docs).\n\n",
         );
         let rows = claim.rows().map(|r| {
             vec![
                 r.get("scene").to_string(),
                 r.get("albedo").to_string(),
                 r.get("downsample").to_string(),
+                r.get("boundary").to_string(),
                 r.fixed("fld_lp_error_multiple", 3),
                 r.fixed("cda_error_multiple", 3),
                 r.fixed("reference_noise_multiple", 3),
@@ -575,6 +612,7 @@ impl Experiment for Renderings {
                 "scene",
                 "α",
                 "downsample",
+                "vacuum face",
                 "FLD-LP error",
                 "CDA error",
                 "reference noise",

@@ -1,0 +1,454 @@
+//! Multigrid next to SOR (issue 15, acceptance 2 and the `convergence` panels of item 4):
+//! cycles and seconds to R̄/j̄ < `--tolerance` against grid size n, for CDA and FLD-LP, on
+//! the point source (zero boundary, albedo `--albedo`, τ = 4 across the grid) and on FLD
+//! Fig 4's cloud in vacuum ([`solvers::scenes::vacuum_cloud`]), CPU f64.
+//!
+//! Multigrid is the FAS V(2,2) of [`solvers::fld::multigrid`]; SOR is FLD Algorithm 1 with
+//! the Poisson-optimal ω(n) and runs only for n ≤ `--sor-max-n` (its iterations grow like
+//! n^1.7). Grid-independent convergence means the cycle count stays flat in n (acceptance 2
+//! asks ≤ 25 % spread over n = 31…255). A solve that stalls or hits its cap is reported as
+//! such (`stop`), never as converged.
+//!
+//! **Outputs** (`results/multigrid_scaling/`):
+//! * `steps.csv`: `problem,method,n,solver,steps,work_units,seconds,setup_seconds,stop,
+//!   final_residual` — steps are SOR iterations or multigrid cycles; work units count fine
+//!   red-black sweeps (a smoothing sweep on level ℓ counts 8^−ℓ; SOR: its iterations);
+//! * `history.csv`: `problem,method,n,solver,step,work_units,seconds,residual` — the residual
+//!   after every step at the largest n that both solvers ran;
+//! * `steps_vs_n.png`, `seconds_vs_n.png`: steps and seconds to the tolerance against n;
+//!   `residual_vs_work.png`, `residual_vs_seconds.png`: the histories.
+
+use crate::common::{CommonArgs, Ctx, list_item, progress};
+use crate::experiment::{BackendSupport, Experiment, Promise};
+use crate::plot::{Axis, Series, Style, plot};
+use crate::report::{Section, table};
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use solvers::fld::{self, Boundary, FldConfig, FluxLimiter};
+use solvers::{Backend, Medium, Precision, scenes};
+use std::time::Instant;
+
+/// Flags of `multigrid_scaling`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(about = "Multigrid vs SOR: cycles and seconds to tolerance against grid size (issue 15)")]
+pub struct Args {
+    /// Shared flags.
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Grid sizes (odd: the point source needs a centre voxel). Default 31,63,127,255
+    /// (15,31 with --quick).
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<usize>)]
+    pub n: Option<Vec<usize>>,
+    /// SOR runs only up to this n. Default 63 (31 with --quick).
+    #[arg(long, value_parser = crate::common::count_usize)]
+    pub sor_max_n: Option<usize>,
+    /// Problems: `point_source`, `cloud`.
+    #[arg(long, value_delimiter = ',', default_value = "point_source,cloud")]
+    pub problems: Vec<String>,
+    /// Limiters (`cda`, `lp`, … as in `point_source --limiters`).
+    #[arg(long, value_delimiter = ',', value_parser = list_item::<FluxLimiter>, default_value = "cda,lp")]
+    pub limiters: Vec<FluxLimiter>,
+    /// Stop at R̄/j̄ below this.
+    #[arg(long, default_value_t = 1e-6)]
+    pub tolerance: f64,
+    /// Albedo of the point-source medium.
+    #[arg(long, default_value_t = 0.5)]
+    pub albedo: f64,
+    /// Cycle cap of multigrid.
+    #[arg(long, default_value_t = 200, value_parser = crate::common::count_usize)]
+    pub max_cycles: usize,
+    /// Iteration cap of SOR.
+    #[arg(long, default_value_t = 20_000, value_parser = crate::common::count_usize)]
+    pub max_iterations: usize,
+    /// Seed of the cloud's Perlin emission.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// One row of `steps.csv`.
+#[derive(Debug, Clone, Serialize)]
+pub struct StepRow {
+    /// `point_source` or `cloud`.
+    pub problem: String,
+    /// `cda`, `fld:lp`, …
+    pub method: String,
+    /// Grid size per axis.
+    pub n: usize,
+    /// `sor` or `multigrid`.
+    pub solver: &'static str,
+    /// Iterations (SOR) or cycles (multigrid) run.
+    pub steps: usize,
+    /// Fine red-black sweeps of work.
+    pub work_units: f64,
+    /// Seconds of the steps.
+    pub seconds: f64,
+    /// Seconds of setup (packing; multigrid: building the levels).
+    pub setup_seconds: f64,
+    /// `converged`, `cap`, `stalled` or `non_finite`.
+    pub stop: String,
+    /// R̄/j̄ after the last step.
+    pub final_residual: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct HistoryRow {
+    problem: String,
+    method: String,
+    n: usize,
+    solver: &'static str,
+    step: usize,
+    work_units: f64,
+    seconds: f64,
+    residual: f64,
+}
+
+fn medium(problem: &str, n: usize, albedo: f64, seed: u64) -> Result<Medium<f64>> {
+    match problem {
+        "point_source" => Ok(scenes::point_source::<f64>(n, 4.0, albedo)
+            .context("building the point-source medium")?
+            .0),
+        "cloud" => scenes::vacuum_cloud::<f64>(n, seed).context("building the cloud"),
+        other => bail!("--problems: unknown problem {other:?} (point_source, cloud)"),
+    }
+}
+
+/// Runs the experiment; returns the `steps.csv` rows.
+pub fn run(args: &Args) -> Result<Vec<StepRow>> {
+    crate::experiment::run::<MultigridScaling>(args)
+}
+
+fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
+    let q = args.common.quick;
+    let ns = args.n.clone().unwrap_or_else(|| {
+        if q {
+            vec![15, 31]
+        } else {
+            vec![31, 63, 127, 255]
+        }
+    });
+    let sor_max = args.sor_max_n.unwrap_or(if q { 31 } else { 63 });
+    if let Some(n) = ns.iter().find(|n| **n < 7 || **n % 2 == 0) {
+        bail!("--n: {n} must be odd and ≥ 7 (the point source sits in the centre voxel)");
+    }
+    if !(args.tolerance > 0.0 && args.tolerance < 1.0) {
+        bail!("--tolerance must lie in (0, 1), got {}", args.tolerance);
+    }
+    if !(0.0..=1.0).contains(&args.albedo) {
+        bail!("--albedo: {} is outside [0, 1]", args.albedo);
+    }
+    for p in &args.problems {
+        if !matches!(p.as_str(), "point_source" | "cloud") {
+            bail!("--problems: unknown problem {p:?} (point_source, cloud)");
+        }
+    }
+    for &n in &ns {
+        // Multigrid's levels add at most 1/7 to the finest level's arrays.
+        let bytes = solvers::budget::cube_solver_bytes(n).saturating_mul(8) / 7 + 1;
+        solvers::budget::check(format!("--n {n}"), bytes)?;
+    }
+    ctx.start(serde_json::json!({
+        "n": ns, "sor_max_n": sor_max, "problems": args.problems,
+        "limiters": args.limiters.iter().map(|l| l.to_string()).collect::<Vec<_>>(),
+        "tolerance": args.tolerance, "albedo": args.albedo, "max_cycles": args.max_cycles,
+        "max_iterations": args.max_iterations, "seed": args.seed,
+        "multigrid": "FAS V(2,2), solvers::fld::multigrid::MgConfig::default()",
+        "sor_omega": "FldConfig::poisson_optimal_omega(n)",
+        "backend": "cpu-f64",
+    }))?;
+    let out = ctx;
+    let history_n = ns.iter().copied().filter(|&n| n <= sor_max).max();
+    let backend = Backend::Cpu(Precision::F64);
+    let mut jobs: Vec<(String, FluxLimiter, usize, bool)> = Vec::new();
+    for p in &args.problems {
+        for &l in &args.limiters {
+            for &n in &ns {
+                for mg in [true, false] {
+                    if mg || n <= sor_max {
+                        jobs.push((p.clone(), l, n, mg));
+                    }
+                }
+            }
+        }
+    }
+    let bar = progress(jobs.len() as u64, &args.common, "multigrid_scaling");
+    let (mut rows, mut history) = (Vec::new(), Vec::new());
+    for (problem, limiter, n, mg) in jobs {
+        let m = medium(&problem, n, args.albedo, args.seed)?;
+        let method = if limiter.is_constant() {
+            "cda".to_string()
+        } else {
+            format!("fld:{limiter}")
+        };
+        let (solver, cap) = if mg {
+            (
+                fld::Solver::Multigrid(fld::multigrid::MgConfig::default()),
+                args.max_cycles,
+            )
+        } else {
+            (fld::Solver::Sor, args.max_iterations)
+        };
+        let cfg = FldConfig {
+            limiter,
+            omega: FldConfig::poisson_optimal_omega(n),
+            max_iterations: cap,
+            ..FldConfig::default()
+        }
+        .with_tolerance(args.tolerance);
+        let name = solver.name();
+        let t0 = Instant::now();
+        let mut stamps = Vec::new();
+        let sol = fld::solve_with(&backend, &m, &Boundary::Zero, &cfg, &solver, |it, r| {
+            stamps.push(t0.elapsed().as_secs_f64());
+            if mg || it % 25 == 0 {
+                bar.set_message(format!(
+                    "{problem} {method} n={n} {name} step {it} R̄/j̄ {r:.2e}"
+                ));
+            }
+        })
+        .with_context(|| format!("{problem} {method} n = {n} with {name}"))?;
+        let steps = sol.steps;
+        let per_step = if steps > 0 {
+            sol.trace.work_units / steps as f64
+        } else {
+            0.0
+        };
+        if Some(n) == history_n {
+            // The observer's clock includes setup; shift it so step 0 starts at 0.
+            let t_setup = stamps
+                .first()
+                .map_or(0.0, |&t| t - sol.seconds / steps.max(1) as f64);
+            for (i, &r) in sol.residuals().iter().enumerate() {
+                history.push(HistoryRow {
+                    problem: problem.clone(),
+                    method: method.clone(),
+                    n,
+                    solver: name,
+                    step: i + 1,
+                    work_units: per_step * (i + 1) as f64,
+                    seconds: stamps.get(i).map_or(f64::NAN, |&t| t - t_setup),
+                    residual: r,
+                });
+            }
+        }
+        out.timing(format!("{problem}/{method}/n{n}/{name}"), sol.seconds);
+        rows.push(StepRow {
+            problem: problem.clone(),
+            method,
+            n,
+            solver: name,
+            steps,
+            work_units: sol.trace.work_units,
+            seconds: sol.seconds,
+            setup_seconds: sol.setup_seconds,
+            stop: sol.stop.to_string(),
+            final_residual: sol.final_residual(),
+        });
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    out.csv("steps.csv", &rows)?;
+    out.csv("history.csv", &history)?;
+    plots(out, &rows, &history)?;
+    Ok(rows)
+}
+
+fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
+    let mut keys: Vec<(String, String, &'static str)> = Vec::new();
+    for r in rows {
+        let k = (r.problem.clone(), r.method.clone(), r.solver);
+        if !keys.contains(&k) {
+            keys.push(k);
+        }
+    }
+    let label = |k: &(String, String, &str)| format!("{} {} {}", k.0, k.1, k.2);
+    let style = |s: &str| {
+        if s == "sor" {
+            Style::Dashed
+        } else {
+            Style::Line
+        }
+    };
+    let series = |f: &dyn Fn(&StepRow) -> f64| -> Vec<Series> {
+        keys.iter()
+            .enumerate()
+            .map(|(c, k)| {
+                let pts = rows
+                    .iter()
+                    .filter(|r| r.problem == k.0 && r.method == k.1 && r.solver == k.2)
+                    .filter(|r| r.stop == "converged")
+                    .map(|r| (r.n as f64, f(r)))
+                    .collect();
+                Series::new(label(k), pts, style(k.2), c)
+            })
+            .collect()
+    };
+    let x = Axis::log("grid size n (n³ voxels)");
+    plot(
+        &out.path("steps_vs_n.png"),
+        "Steps to tolerance: SOR iterations and multigrid V(2,2) cycles (converged runs)",
+        &x,
+        &Axis::log("steps"),
+        &series(&|r| r.steps as f64),
+    )?;
+    plot(
+        &out.path("seconds_vs_n.png"),
+        "Seconds to tolerance (CPU f64, converged runs)",
+        &x,
+        &Axis::log("seconds"),
+        &series(&|r| r.seconds.max(1e-6)),
+    )?;
+    let hist = |f: &dyn Fn(&HistoryRow) -> f64| -> Vec<Series> {
+        keys.iter()
+            .enumerate()
+            .map(|(c, k)| {
+                let pts = history
+                    .iter()
+                    .filter(|h| h.problem == k.0 && h.method == k.1 && h.solver == k.2)
+                    .map(|h| (f(h), h.residual.max(1e-300)))
+                    .filter(|p| p.0.is_finite() && p.0 > 0.0)
+                    .collect();
+                Series::new(label(k), pts, style(k.2), c)
+            })
+            .collect()
+    };
+    let nh = history.first().map_or(0, |h| h.n);
+    plot(
+        &out.path("residual_vs_work.png"),
+        &format!("Residual against work at n = {nh}"),
+        &Axis::log("work units (fine red-black sweeps)"),
+        &Axis::log("R̄/j̄"),
+        &hist(&|h| h.work_units),
+    )?;
+    plot(
+        &out.path("residual_vs_seconds.png"),
+        &format!("Residual against seconds at n = {nh}"),
+        &Axis::log("seconds"),
+        &Axis::log("R̄/j̄"),
+        &hist(&|h| h.seconds),
+    )?;
+    Ok(())
+}
+
+/// Issue 15's multigrid scaling in the registry.
+#[derive(Debug)]
+pub struct MultigridScaling;
+
+const STEP_COLUMNS: &[&str] = &[
+    "problem",
+    "method",
+    "n",
+    "solver",
+    "steps",
+    "work_units",
+    "seconds",
+    "setup_seconds",
+    "stop",
+    "final_residual",
+];
+
+impl Experiment for MultigridScaling {
+    const NAME: &'static str = "multigrid_scaling";
+    const TITLE: &'static str =
+        "Multigrid vs SOR: steps and seconds to tolerance against grid size";
+    const BACKEND: BackendSupport =
+        BackendSupport::CpuOnly("the CPU multigrid (the GPU kernel has SOR only)");
+    type Args = Args;
+    type Summary = Vec<StepRow>;
+
+    fn common(args: &Args) -> &CommonArgs {
+        &args.common
+    }
+
+    fn promises(_args: &Args) -> Vec<Promise> {
+        vec![
+            Promise::csv("steps.csv", STEP_COLUMNS),
+            Promise::csv(
+                "history.csv",
+                &[
+                    "problem",
+                    "method",
+                    "n",
+                    "solver",
+                    "step",
+                    "work_units",
+                    "seconds",
+                    "residual",
+                ],
+            ),
+            Promise::file("steps_vs_n.png"),
+            Promise::file("seconds_vs_n.png"),
+            Promise::file("residual_vs_work.png"),
+            Promise::file("residual_vs_seconds.png"),
+        ]
+    }
+
+    fn run(ctx: &mut Ctx, args: &Args) -> Result<Self::Summary> {
+        run_in(ctx, args)
+    }
+
+    fn report(s: &Section<'_>) -> Result<String> {
+        let t = s.csv("steps.csv")?;
+        t.require(STEP_COLUMNS)?;
+        let mut out = String::from(
+            "CPU f64, zero boundary, stop at R̄/j̄ below the run's tolerance (`meta.json`). Multigrid: FAS V(2,2) \
+             (`solvers::fld::multigrid`); SOR: FLD Algorithm 1 at the Poisson-optimal ω(n). Steps are SOR \
+             iterations or multigrid cycles; work units count fine red-black sweeps. Spread: max/min − 1 of the \
+             multigrid cycles over the n that converged (grid independence: issue 15 asks ≤ 25 %).\n\n",
+        );
+        let ns = t.distinct("n");
+        let mut rows = Vec::new();
+        for p in t.distinct("problem") {
+            for m in t.distinct("method") {
+                for solver in ["multigrid", "sor"] {
+                    let sel: Vec<_> = t
+                        .rows()
+                        .filter(|r| {
+                            r.get("problem") == p
+                                && r.get("method") == m
+                                && r.get("solver") == solver
+                        })
+                        .collect();
+                    if sel.is_empty() {
+                        continue;
+                    }
+                    let mut cells = vec![p.clone(), format!("`{m}`"), solver.to_string()];
+                    let mut conv = Vec::new();
+                    for n in &ns {
+                        cells.push(match sel.iter().find(|r| r.get("n") == n) {
+                            Some(r) if r.get("stop") == "converged" => {
+                                conv.push(r.num("steps"));
+                                format!("{} ({} s)", r.get("steps"), r.fixed("seconds", 2))
+                            }
+                            Some(r) => format!("{} {}", r.get("steps"), r.get("stop")),
+                            None => "–".to_string(),
+                        });
+                    }
+                    let spread = match (
+                        conv.iter().copied().reduce(f64::min),
+                        conv.iter().copied().reduce(f64::max),
+                    ) {
+                        (Some(lo), Some(hi)) if solver == "multigrid" => {
+                            format!("{:.0} %", 100.0 * (hi / lo - 1.0))
+                        }
+                        _ => "–".to_string(),
+                    };
+                    cells.push(spread);
+                    rows.push(cells);
+                }
+            }
+        }
+        let mut head: Vec<String> = ["problem", "method", "solver"].map(String::from).to_vec();
+        head.extend(ns.iter().map(|n| format!("n = {n}")));
+        head.push("spread".into());
+        let head: Vec<&str> = head.iter().map(String::as_str).collect();
+        out.push_str(&table(&head, rows));
+        out.push('\n');
+        out.push_str(&s.pngs([
+            "steps_vs_n.png",
+            "seconds_vs_n.png",
+            "residual_vs_work.png",
+            "residual_vs_seconds.png",
+        ]));
+        Ok(out)
+    }
+}
