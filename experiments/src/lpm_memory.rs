@@ -1,10 +1,12 @@
 //! LPM Fig 7 analog: bytes against volume size. Our exact per-buffer accounting
-//! (`solvers::lpm::memory_bytes`, f32, one channel, m = 5: 25 directions per LPM, 6 U and 1
-//! I) next to the paper's formula without streaming (§5, `solvers::lpm::paper_memory_bytes`)
-//! and, up to `--measure-max`, the bytes the solver reports it allocated (Σ capacities of
-//! its resident buffers after a one-order solve). Slice streaming (§4.2) is not implemented
-//! yet, so there is no "with streaming" curve; the paper's streaming formula is printed
-//! beside it for reference.
+//! (`solvers::lpm::memory_bytes_sliced`, f32, one channel, m = 5: 25 directions per LPM, 6 U
+//! and 1 I), unstreamed and with slice streaming at S = 16 slabs per slice (§4.2, D19: T holds
+//! one slice), next to the paper's formulas without and with streaming (§5,
+//! `solvers::lpm::paper_memory_bytes`, `paper_streaming_memory_bytes`) and, up to
+//! `--measure-max`, the bytes the solver reports it allocated (Σ capacities of its resident
+//! buffers after a one-order solve, unstreamed and streamed). Above `--measure-max` the rows
+//! are formula only (`measured_by`). Lines at 1.5 GB, 2 GB (the paper's Fig 7) and 139 GiB
+//! (one H200).
 
 use crate::common::{CommonArgs, Ctx, list_item};
 use crate::experiment::{BackendSupport, Experiment, Promise};
@@ -12,7 +14,7 @@ use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
-use solvers::lpm::{self, BoundaryLight, Directions, LpmConfig, Orders};
+use solvers::lpm::{self, BoundaryLight, Directions, LpmConfig, Orders, Streaming};
 use solvers::{Backend, Grid, Medium, Precision};
 
 /// Flags of `lpm_memory`.
@@ -50,6 +52,18 @@ pub struct MemoryRow {
     pub paper_rgb: u64,
     /// The paper's streaming formula with S = 16, one channel: 4((1 + 2U + I)S n² + S p n² + p n²).
     pub paper_streaming_s16: u64,
+    /// `solve` where the measured columns come from solves, `formula` above --measure-max.
+    pub measured_by: String,
+    /// Slabs per slice of the streamed columns (16, or n when n < 16).
+    pub stream_slabs: usize,
+    /// Our formula with streaming at `stream_slabs`, total, bytes.
+    pub streamed_formula_total: u64,
+    /// Our formula with streaming, resident buffers, bytes.
+    pub streamed_formula_resident: u64,
+    /// Measured resident bytes of the streamed solve (empty above --measure-max).
+    pub streamed_measured_resident: Option<u64>,
+    /// T of one slice with streaming, bytes.
+    pub streamed_t: u64,
     /// Medium buffers (σt, σs, j/4π and the x-layout copies).
     pub medium: u64,
     /// Two U sets of 6 cones.
@@ -79,10 +93,12 @@ fn peak_rss() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// One order, m = 5, unstreamed (the streamed runs set `Streaming::Slabs(16)`).
 fn config() -> LpmConfig {
     LpmConfig {
         m: 5,
         orders: Orders::Fixed(1),
+        streaming: Streaming::Whole,
         ..LpmConfig::default()
     }
 }
@@ -105,39 +121,66 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<MemoryRow>> {
     let cfg = config();
     let mut work = crate::cost::Estimate::new();
     for &n in ns.iter().filter(|&&n| n <= measure_max) {
-        work.add(format!("n = {n}: one order"), 265.0 * (n as f64).powi(3));
+        // Two one-order solves (unstreamed and S = 16).
+        work.add(
+            format!("n = {n}: two one-order solves"),
+            2.0 * 265.0 * (n as f64).powi(3),
+        );
     }
     ctx.work(&work)?;
     ctx.start(
         serde_json::json!({"n": ns, "measure_max": measure_max, "m": cfg.m,
-        "word_bytes": 4, "orders": 1}),
+        "word_bytes": 4, "orders": 1, "stream_slabs": 16,
+        "measured_by": "solve up to measure_max, formula above"}),
     )?;
     let pb = ctx.progress(ns.len() as u64, "lpm_memory");
     let mut rows = Vec::new();
     for &n in &ns {
         let grid = Grid::cube(n, 1.0)?;
-        let f = lpm::memory_bytes(&grid, &cfg, 4);
+        let f = lpm::memory_bytes_sliced(&grid, &cfg, 4, n);
+        let stream_slabs = 16.min(n);
+        let streamed_cfg = LpmConfig {
+            streaming: Streaming::Slabs(stream_slabs),
+            ..cfg.clone()
+        };
+        let fs = lpm::memory_bytes_sliced(&grid, &cfg, 4, stream_slabs);
         let measured = if n <= measure_max {
             solvers::budget::check(format!("lpm_memory n = {n}"), f.total())?;
             let medium = Medium::homogeneous(grid, 2.0 * n as f64, 0.9)?;
             let dirs = Directions::new(cfg.m)?;
-            let t0 = std::time::Instant::now();
-            let s = lpm::solve(
-                &Backend::Cpu(Precision::F32),
-                &medium,
-                &BoundaryLight::uniform(&dirs, 1.0),
-                &cfg,
-                |_, _| {},
-            )
-            .with_context(|| format!("LPM solve at n = {n}"))?;
-            ctx.timing(format!("n = {n}: one order"), t0.elapsed().as_secs_f64());
-            Some((s.memory.resident_measured, peak_rss()))
+            let mut one = |c: &LpmConfig, what: &str| -> Result<u64> {
+                let t0 = std::time::Instant::now();
+                let s = lpm::solve(
+                    &Backend::Cpu(Precision::F32),
+                    &medium,
+                    &BoundaryLight::uniform(&dirs, 1.0),
+                    c,
+                    |_, _| {},
+                )
+                .with_context(|| format!("LPM solve at n = {n} ({what})"))?;
+                ctx.timing(
+                    format!("n = {n}: one order, {what}"),
+                    t0.elapsed().as_secs_f64(),
+                );
+                if s.memory.resident_measured != s.memory.formula.resident() {
+                    bail!(
+                        "n = {n} ({what}): measured {} B differs from the formula's {} B",
+                        s.memory.resident_measured,
+                        s.memory.formula.resident()
+                    );
+                }
+                Ok(s.memory.resident_measured)
+            };
+            let unstreamed = one(&cfg, "unstreamed")?;
+            let rss = peak_rss();
+            let streamed = one(&streamed_cfg, &format!("S = {stream_slabs}"))?;
+            Some((unstreamed, rss, streamed))
         } else {
             None
         };
-        let (measured, rss_peak) = match measured {
-            Some((m, r)) => (Some(m), r),
-            None => (None, None),
+        let (measured, rss_peak, streamed_measured) = match measured {
+            Some((m, r, s)) => (Some(m), r, Some(s)),
+            None => (None, None, None),
         };
         let n64 = n as u64;
         let paper = lpm::paper_memory_bytes(n64, 6, 1, 25, 1);
@@ -150,7 +193,18 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<MemoryRow>> {
             rss_peak,
             paper,
             paper_rgb: lpm::paper_memory_bytes(n64, 6, 1, 25, 3),
-            paper_streaming_s16: 4 * (14 * s * n64 * n64 + s * 25 * n64 * n64 + 25 * n64 * n64),
+            paper_streaming_s16: lpm::paper_streaming_memory_bytes(n64, 6, 1, 25, s, 1),
+            measured_by: if measured.is_some() {
+                "solve"
+            } else {
+                "formula"
+            }
+            .into(),
+            stream_slabs,
+            streamed_formula_total: fs.total(),
+            streamed_formula_resident: fs.resident(),
+            streamed_measured_resident: streamed_measured,
+            streamed_t: fs.t,
             medium: f.medium,
             u: f.u,
             i: f.i,
@@ -182,6 +236,14 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<MemoryRow>> {
             0,
         ),
         Series::new(
+            "ours: formula, streaming S = 16, total",
+            rows.iter()
+                .map(|r| (r.n as f64, gib(r.streamed_formula_total)))
+                .collect(),
+            Style::Line,
+            3,
+        ),
+        Series::new(
             "paper §5, no streaming",
             rows.iter().map(|r| (r.n as f64, gib(r.paper))).collect(),
             Style::Line,
@@ -206,6 +268,35 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<MemoryRow>> {
             measured,
             Style::Points,
             2,
+        ));
+    }
+    let streamed: Vec<(f64, f64)> = rows
+        .iter()
+        .filter_map(|r| r.streamed_measured_resident.map(|b| (r.n as f64, gib(b))))
+        .collect();
+    if !streamed.is_empty() {
+        series.push(Series::new(
+            "ours: measured resident, streaming S = 16",
+            streamed,
+            Style::Points,
+            4,
+        ));
+    }
+    let (lo, hi) = (
+        rows.iter().map(|r| r.n).min().unwrap_or(16) as f64,
+        rows.iter().map(|r| r.n).max().unwrap_or(256) as f64,
+    );
+    for (label, bytes, colour) in [
+        ("1.5 GB", 1.5e9, 5),
+        ("2 GB", 2e9, 6),
+        ("139 GiB (H200)", 139.0 * (1u64 << 30) as f64, 7),
+    ] {
+        let y = bytes / (1u64 << 30) as f64;
+        series.push(Series::new(
+            label,
+            vec![(lo, y), (hi, y)],
+            Style::Dashed,
+            colour,
         ));
     }
     plot(
@@ -246,6 +337,11 @@ impl Experiment for LpmMemory {
                     "paper",
                     "paper_rgb",
                     "paper_streaming_s16",
+                    "measured_by",
+                    "stream_slabs",
+                    "streamed_formula_total",
+                    "streamed_formula_resident",
+                    "streamed_measured_resident",
                 ],
             ),
             Promise::file("memory.png"),
@@ -263,9 +359,11 @@ impl Experiment for LpmMemory {
         let mut out = String::from(
             "Bytes of one LPM solve (m = 5: 25 directions per LPM, 6 U cones, 1 I, f32, one \
              channel; RGB runs three such solves one after another) by our per-buffer formula, as \
-             measured (Σ capacities the solver reports after a one-order solve), and by the paper's \
-             §5 formula. Slice streaming (§4.2) is not implemented yet: there is no streamed \
-             measurement; the paper's streaming formula (S = 16) is shown for reference.\n\n",
+             measured (Σ capacities the solver reports after a one-order solve), unstreamed and with \
+             slice streaming at S = 16 slabs per slice (T holds one slice of the 25 directions; the \
+             volume stays resident), and by the paper's §5 formulas without and with streaming \
+             (S = 16; the paper's streams the volume too, ours only T). Rows above the measured \
+             range are formula only.\n\n",
         );
         out.push_str(&table(
             &[
@@ -277,6 +375,8 @@ impl Experiment for LpmMemory {
                 "paper (MiB)",
                 "paper RGB (MiB)",
                 "paper streaming S=16 (MiB)",
+                "ours streamed S=16 total (MiB)",
+                "measured streamed resident (MiB)",
             ],
             t.rows().map(|r| {
                 let measured = r.get("measured_resident");
@@ -297,6 +397,16 @@ impl Experiment for LpmMemory {
                     mib(r.num("paper")),
                     mib(r.num("paper_rgb")),
                     mib(r.num("paper_streaming_s16")),
+                    if r.get("streamed_formula_total").is_empty() {
+                        "–".to_string()
+                    } else {
+                        mib(r.num("streamed_formula_total"))
+                    },
+                    if !r.get("streamed_measured_resident").is_empty() {
+                        mib(r.num("streamed_measured_resident"))
+                    } else {
+                        "not run".to_string()
+                    },
                 ]
             }),
         ));

@@ -34,6 +34,8 @@ pub struct CpuLpm<T> {
     sigma_s_x: Vec<T>,
     /// U⁰ = I⁰ = j/4π per voxel (D9).
     pub(super) source: Vec<T>,
+    /// Slabs per slice (D19; ≥ the longest axis: not streamed).
+    slabs: usize,
 }
 
 /// (E, φ1, φ2) of optical depth τ: E = e^{−τ}, φ1 = (1 − E)/τ, φ2 = (τ − 1 + E)/τ² (spec
@@ -156,6 +158,25 @@ struct SweepTally {
     exited: f64,
 }
 
+/// One direction's rays between slices: radiance per ray (lattice order), the last
+/// sub-segment's lateral offsets (for the wrap events), the re-entry radiance and the tally.
+#[derive(Debug, Clone)]
+struct RayState<T> {
+    ray: Vec<T>,
+    prev: [i64; 2],
+    l0: f64,
+    tally: SweepTally,
+}
+
+/// One direction's buffers of a face: its slice of T (and of the paper's deposit) and its
+/// rays.
+#[derive(Debug)]
+struct Lane<T> {
+    g: Vec<T>,
+    p: Vec<T>,
+    rays: Option<RayState<T>>,
+}
+
 impl<T: Real> CpuLpm<T> {
     /// Prepares a solve; validates the medium and the settings, and refuses a grid whose
     /// buffers exceed the memory budget (before allocating them).
@@ -164,8 +185,7 @@ impl<T: Real> CpuLpm<T> {
         medium.validate()?;
         let grid = medium.grid;
         let dirs = Directions::new(config.m)?;
-        let memory = super::memory_bytes(&grid, config, std::mem::size_of::<T>() as u64);
-        config.check_budget(&grid, memory.total())?;
+        let slabs = config.slabs(&grid, std::mem::size_of::<T>() as u64)?;
         let phase = PhaseMatrix::new(&dirs, config.phase, config.quadrature)?;
         let tables = dirs
             .dirs
@@ -191,6 +211,7 @@ impl<T: Real> CpuLpm<T> {
             sigma_t: medium.sigma_t.clone(),
             sigma_s,
             source: medium.emission.iter().map(|&j| j / four_pi).collect(),
+            slabs,
         })
     }
 
@@ -211,7 +232,17 @@ impl<T: Real> CpuLpm<T> {
 
     /// Bytes of a solve by our per-buffer formula ([`super::memory_bytes`]).
     pub fn memory_estimate(&self) -> u64 {
-        super::memory_bytes(&self.grid, &self.config, std::mem::size_of::<T>() as u64).total()
+        self.memory_formula().total()
+    }
+
+    /// Our per-buffer formula at this solve's slabs per slice.
+    pub fn memory_formula(&self) -> super::MemoryBytes {
+        super::memory_bytes_sliced(
+            &self.grid,
+            &self.config,
+            std::mem::size_of::<T>() as u64,
+            self.slabs,
+        )
     }
 
     /// The ray tube's cross-section A of direction i: A⊥ = h²|ω·n_f| (D6) or the paper's face
@@ -232,88 +263,79 @@ impl<T: Real> CpuLpm<T> {
         }
     }
 
-    /// Sweeps direction `i` through the grid: reads `u_src` (the unshot U of its cone),
-    /// starts and re-enters rays per the wrap rule, accumulates ∫L ds into `g` (and the
-    /// paper's deposit into `paper`). Returns the final ray radiances (lattice order).
-    ///
-    /// The x-faces (a = 0) sweep in the layout of [`to_x_layout`] (`u_src` must be in it
-    /// then) into a scratch T that is transposed into `g` (and `paper`) at the end.
-    fn sweep(
-        &self,
-        i: usize,
-        u_src: &[T],
-        l_bc: f64,
-        order: usize,
-        g: &mut [T],
-        paper: Option<&mut [T]>,
-    ) -> (Vec<T>, SweepTally) {
-        if self.dirs.dirs[i].face / 2 != 0 {
-            let n = self.grid.n;
-            let strides = [1, n[0], n[0] * n[1]];
-            let media = (&self.sigma_t[..], &self.sigma_s[..]);
-            return self.sweep_in(i, media, strides, u_src, l_bc, order, g, paper);
-        }
+    /// The medium (σt, σs), in the layout the sweeps of sweep axis `a` read, and the strides
+    /// of the x, y, z voxel indices in it: the x faces read the copies in the layout of
+    /// [`to_x_layout`], so every sweep's rows run along memory.
+    fn sweep_media(&self, a: usize) -> ((&[T], &[T]), [usize; 3]) {
         let n = self.grid.n;
-        let strides = [n[1] * n[2], 1, n[1]];
-        let media = (&self.sigma_t_x[..], &self.sigma_s_x[..]);
-        let mut gx = vec![T::zero(); g.len()];
-        let mut px = paper.as_ref().map(|p| vec![T::zero(); p.len()]);
-        let out = self.sweep_in(
-            i,
-            media,
-            strides,
-            u_src,
-            l_bc,
-            order,
-            &mut gx,
-            px.as_deref_mut(),
-        );
-        from_x_layout(&self.grid, &gx, g);
-        if let (Some(p), Some(px)) = (paper, px) {
-            from_x_layout(&self.grid, &px, p);
+        if a == 0 {
+            ((&self.sigma_t_x, &self.sigma_s_x), [n[1] * n[2], 1, n[1]])
+        } else {
+            ((&self.sigma_t, &self.sigma_s), [1, n[0], n[0] * n[1]])
         }
-        out
     }
 
-    /// [`Self::sweep`] with the medium and buffers in the layout given by `strides` (of the
-    /// x, y, z voxel indices).
+    /// Slabs per slice of the solve (the longest axis: not streamed).
+    pub fn slabs(&self) -> usize {
+        self.slabs
+    }
+
+    /// The rays of direction `i` entering its face at `order` (boundary radiance `l_bc`),
+    /// before the first slab.
+    fn start_rays(&self, i: usize, l_bc: f64, order: usize) -> RayState<T> {
+        let (b, c) = lateral_axes(self.dirs.dirs[i].face / 2);
+        let rays = self.grid.n[b] * self.grid.n[c];
+        let l0 = if order == 0 { l_bc } else { 0.0 };
+        RayState {
+            ray: vec![T::c(l0); rays],
+            prev: [0, 0],
+            l0,
+            tally: SweepTally {
+                injected: l0 * rays as f64,
+                exited: 0.0,
+            },
+        }
+    }
+
+    /// Sweeps the rays `st` of direction `i` through the slabs `z0..z1` (sweep order) of
+    /// its face: reads `u_src` (the unshot U of its cone, in the x layout for the x faces),
+    /// re-enters rays per the wrap rule, accumulates ∫L ds into the slice's T `g` (and the
+    /// paper's deposit into `paper`), both in the slice layout b + n_b(c + n_c(z − z0)).
+    /// The ray state is left for the next slice; the summation order per voxel does not
+    /// depend on the slicing.
     #[allow(clippy::too_many_arguments)]
-    fn sweep_in(
+    fn sweep_slabs(
         &self,
         i: usize,
-        (sigma_t, sigma_s): (&[T], &[T]),
-        strides: [usize; 3],
         u_src: &[T],
-        l_bc: f64,
-        order: usize,
+        (z0, z1): (usize, usize),
+        st: &mut RayState<T>,
         g: &mut [T],
         mut paper: Option<&mut [T]>,
-    ) -> (Vec<T>, SweepTally) {
+    ) {
         let dir = &self.dirs.dirs[i];
         let (a, sign) = dir.axis();
         let (b, c) = lateral_axes(a);
         let n = self.grid.n;
         let (na, nb, nc) = (n[a], n[b], n[c]);
+        let ((sigma_t, sigma_s), strides) = self.sweep_media(a);
         let (sa, sb, sc) = (strides[a], strides[b], strides[c]);
         debug_assert_eq!(sb, 1, "rows run along memory");
         let scale = self.grid.dl * self.path_factor(i);
-        let l0 = if order == 0 { l_bc } else { 0.0 };
         let reentry = match self.config.wrap {
             WrapBc::Zero => Some(T::zero()),
-            WrapBc::Open => Some(T::c(l0)),
+            WrapBc::Open => Some(T::c(st.l0)),
             WrapBc::Periodic => None,
         };
         let ts = series_threshold::<T>();
-        let mut ray = vec![T::c(l0); nb * nc];
-        let mut tally = SweepTally {
-            injected: l0 * (nb * nc) as f64,
-            exited: 0.0,
-        };
+        let ray = &mut st.ray;
+        let tally = &mut st.tally;
         let table = &self.tables[i];
-        let mut prev = [0i64; 2];
+        let mut prev = st.prev;
         let paper_deposit = self.config.formulas.deposit == Deposit::Paper;
-        for z in 0..na {
+        for z in z0..z1 {
             let slab = if sign > 0 { z } else { na - 1 - z };
+            let tz = (z - z0) * nb * nc;
             for seg in table.slab(z) {
                 let ob = seg.offset[0].rem_euclid(nb as i64) as usize;
                 let oc = seg.offset[1].rem_euclid(nc as i64) as usize;
@@ -349,12 +371,13 @@ impl<T: Real> CpuLpm<T> {
                     let s = (yc + nc - oc) % nc;
                     let rays = &mut ray[nb * s..nb * (s + 1)];
                     let base = slab * sa + yc * sc;
+                    let tbase = tz + yc * nb;
                     let (head, tail) = rays.split_at_mut(nb - ob);
-                    for (run, v0) in [(head, base + ob * sb), (tail, base)] {
+                    for (run, v0, t0) in [(head, base + ob * sb, tbase + ob), (tail, base, tbase)] {
                         let w = run.len();
                         if let (true, Some(p)) = (paper_deposit, paper.as_deref_mut()) {
                             let ss = &sigma_s[v0..v0 + w];
-                            for ((l, p), &ss) in run.iter().zip(&mut p[v0..v0 + w]).zip(ss) {
+                            for ((l, p), &ss) in run.iter().zip(&mut p[t0..t0 + w]).zip(ss) {
                                 *p = *p - *l * (-(ss * len)).exp_m1();
                             }
                         }
@@ -364,7 +387,7 @@ impl<T: Real> CpuLpm<T> {
                             run,
                             &u_src[v0..v0 + w],
                             &sigma_t[v0..v0 + w],
-                            &mut g[v0..v0 + w],
+                            &mut g[t0..t0 + w],
                             len,
                             ts,
                         );
@@ -372,24 +395,51 @@ impl<T: Real> CpuLpm<T> {
                 }
             }
         }
-        tally.exited += ray.iter().map(|l| l.f()).sum::<f64>();
-        (ray, tally)
+        st.prev = prev;
+    }
+
+    /// The grid voxel of slice-layout index `l` of a slice starting at sweep step `z0` of
+    /// face `face` (the inverse of the layout of [`Self::sweep_slabs`]).
+    fn slice_voxel(&self, face: usize, z0: usize, l: usize) -> usize {
+        let n = self.grid.n;
+        let a = face / 2;
+        let (b, c) = lateral_axes(a);
+        let (nb, nc) = (n[b], n[c]);
+        let z = z0 + l / (nb * nc);
+        let mut xyz = [0usize; 3];
+        xyz[a] = if face % 2 == 0 { z } else { n[a] - 1 - z };
+        xyz[b] = l % nb;
+        xyz[c] = (l / nb) % nc;
+        self.grid.index(xyz[0], xyz[1], xyz[2])
+    }
+
+    /// One unstreamed order-0 sweep of direction `i` with boundary radiance `l_bc` and no
+    /// source: (final ray state, T per grid voxel).
+    fn sweep_whole(&self, i: usize, l_bc: f64) -> (RayState<T>, Vec<T>) {
+        let face = self.dirs.dirs[i].face;
+        let na = self.grid.n[face / 2];
+        let nv = self.grid.len();
+        let zero = vec![T::zero(); nv];
+        let mut g = vec![T::zero(); nv];
+        let mut st = self.start_rays(i, l_bc, 0);
+        self.sweep_slabs(i, &zero, (0, na), &mut st, &mut g, None);
+        let mut out = vec![T::zero(); nv];
+        for (l, &x) in g.iter().enumerate() {
+            out[self.slice_voxel(face, 0, l)] = x;
+        }
+        (st, out)
     }
 
     /// The radiances leaving the far face of direction `i` in a single order-0 sweep with
     /// boundary radiance `l_bc` and no source (test T4), in lattice order.
     pub fn exit_radiance(&self, i: usize, l_bc: f64) -> Vec<T> {
-        let mut g = vec![T::zero(); self.grid.len()];
-        let zero = vec![T::zero(); self.grid.len()];
-        self.sweep(i, &zero, l_bc, 0, &mut g, None).0
+        self.sweep_whole(i, l_bc).0.ray
     }
 
     /// Σ A·∫L ds per voxel for direction `i` divided by h³, in one order-0 sweep of a unit
     /// boundary radiance: the track volume / h³ of T3 when σt = 0.
     pub fn track_volume(&self, i: usize) -> Vec<f64> {
-        let mut g = vec![T::zero(); self.grid.len()];
-        let zero = vec![T::zero(); self.grid.len()];
-        self.sweep(i, &zero, 1.0, 0, &mut g, None);
+        let g = self.sweep_whole(i, 1.0).1;
         let w = self.area(i) / self.grid.dl.powi(3);
         g.iter().map(|x| x.f() * w).collect()
     }
@@ -421,18 +471,26 @@ impl<T: Real> CpuLpm<T> {
         let mut u_prev: Vec<Vec<T>> = (0..CONES).map(|_| self.source.clone()).collect();
         let mut u_cur: Vec<Vec<T>> = (0..CONES).map(|_| vec![T::zero(); nv]).collect();
         let mut intensity: Vec<Vec<T>> = (0..d_i).map(|_| self.source.clone()).collect();
-        let mut gbuf: Vec<Vec<T>> = (0..per).map(|_| vec![T::zero(); nv]).collect();
-        let mut pbuf: Vec<Vec<T>> = if paper {
-            (0..per).map(|_| vec![T::zero(); nv]).collect()
-        } else {
-            Vec::new()
-        };
+        // T (and the paper's deposit) of one slice per direction of the LPM (D16, D19).
+        let slice = super::slice_voxels(&self.grid, self.slabs) as usize;
+        let mut lanes: Vec<Lane<T>> = (0..per)
+            .map(|_| Lane {
+                g: vec![T::zero(); slice],
+                p: if paper {
+                    vec![T::zero(); slice]
+                } else {
+                    Vec::new()
+                },
+                rays: None,
+            })
+            .collect();
         let mut phi = vec![T::zero(); nv];
         let mut phi_orders: Vec<Vec<T>> = Vec::new();
         let mut tallies: Vec<OrderTally> = Vec::new();
         let h3 = self.grid.dl.powi(3);
         let mut stop = Stop::Cap;
         let mut first_unshot = f64::NAN;
+        let n = self.grid.n;
         for order in 0..max_orders {
             for u in &mut u_cur {
                 u.fill(T::zero());
@@ -449,38 +507,52 @@ impl<T: Real> CpuLpm<T> {
                     u_global
                 };
                 let dirs0 = face * per;
-                let sweeps: Vec<SweepTally> = if paper {
-                    gbuf.par_iter_mut()
-                        .zip(pbuf.par_iter_mut())
-                        .enumerate()
-                        .map(|(k, (g, p))| {
-                            g.fill(T::zero());
-                            p.fill(T::zero());
-                            let i = dirs0 + k;
-                            self.sweep(i, u_src, boundary.radiance[i], order, g, Some(p))
-                                .1
-                        })
-                        .collect()
-                } else {
-                    gbuf.par_iter_mut()
-                        .enumerate()
-                        .map(|(k, g)| {
-                            g.fill(T::zero());
-                            let i = dirs0 + k;
-                            self.sweep(i, u_src, boundary.radiance[i], order, g, None).1
-                        })
-                        .collect()
-                };
-                for (k, s) in sweeps.iter().enumerate() {
+                let na = n[face / 2];
+                let step = self.slabs.min(na);
+                for (k, lane) in lanes.iter_mut().enumerate() {
+                    let i = dirs0 + k;
+                    lane.rays = Some(self.start_rays(i, boundary.radiance[i], order));
+                }
+                // The collect's running (deposited, absorbed) per row of x, summed in sweep
+                // order along the row, so the tallies do not depend on the slicing either.
+                let mut rows = vec![(0.0f64, 0.0f64); n[1] * n[2]];
+                for z0 in (0..na).step_by(step) {
+                    let z1 = (z0 + step).min(na);
+                    let len = (z1 - z0) * self.grid.len() / na;
+                    lanes.par_iter_mut().enumerate().for_each(|(k, lane)| {
+                        let Lane { g, p, rays } = lane;
+                        g[..len].fill(T::zero());
+                        let p = if paper {
+                            p[..len].fill(T::zero());
+                            Some(&mut p[..len])
+                        } else {
+                            None
+                        };
+                        if let Some(st) = rays.as_mut() {
+                            self.sweep_slabs(dirs0 + k, u_src, (z0, z1), st, &mut g[..len], p);
+                        }
+                    });
+                    self.collect(
+                        face,
+                        (z0, z1),
+                        &lanes,
+                        (&mut u_cur, &mut intensity, &mut phi_p),
+                        &mut rows,
+                    );
+                }
+                for (k, lane) in lanes.iter_mut().enumerate() {
+                    let Some(st) = lane.rays.take() else { continue };
+                    let exited = st.tally.exited + st.ray.iter().map(|l| l.f()).sum::<f64>();
                     let i = dirs0 + k;
                     let w = self.area(i) * self.dirs.dirs[i].solid_angle;
-                    tally.injected += w * s.injected;
-                    tally.exited += w * s.exited;
+                    tally.injected += w * st.tally.injected;
+                    tally.exited += w * exited;
                     tally.emitted +=
                         w * self.grid.dl * self.path_factor(i) / self.dirs.dirs[i].cos_axis * sum_u;
                 }
-                let (dep, abs) =
-                    self.collect(face, &gbuf, &pbuf, &mut u_cur, &mut intensity, &mut phi_p);
+                let (dep, abs) = rows
+                    .iter()
+                    .fold((0.0, 0.0), |acc, p| (acc.0 + p.0, acc.1 + p.1));
                 tally.scattered += dep * h3;
                 tally.absorbed += abs * h3;
             }
@@ -512,17 +584,23 @@ impl<T: Real> CpuLpm<T> {
                 }
             }
         }
-        let allocated = (u_prev.len() + u_cur.len() + intensity.len() + gbuf.len() + pbuf.len())
-            * nv
-            + phi.len()
-            + phi_orders.len() * nv
-            + self.sigma_t.len()
-            + self.sigma_s.len()
-            + self.sigma_t_x.len()
-            + self.sigma_s_x.len()
-            + self.source.len();
+        let capacity = |v: &[Vec<T>]| v.iter().map(|b| b.capacity()).sum::<usize>();
+        let allocated = capacity(&u_prev)
+            + capacity(&u_cur)
+            + capacity(&intensity)
+            + lanes
+                .iter()
+                .map(|l| l.g.capacity() + l.p.capacity())
+                .sum::<usize>()
+            + phi.capacity()
+            + capacity(&phi_orders)
+            + self.sigma_t.capacity()
+            + self.sigma_s.capacity()
+            + self.sigma_t_x.capacity()
+            + self.sigma_s_x.capacity()
+            + self.source.capacity();
         let memory = Memory {
-            formula: super::memory_bytes(&self.grid, &self.config, std::mem::size_of::<T>() as u64),
+            formula: self.memory_formula(),
             resident_measured: (allocated * std::mem::size_of::<T>()) as u64
                 + self
                     .tables
@@ -532,6 +610,7 @@ impl<T: Real> CpuLpm<T> {
                             + t.start.capacity() * std::mem::size_of::<usize>()
                     })
                     .sum::<usize>() as u64,
+            slabs: self.slabs,
         };
         Ok(LpmSolution {
             grid: self.grid,
@@ -547,23 +626,29 @@ impl<T: Real> CpuLpm<T> {
         })
     }
 
-    /// The collect step of LPM Eq 4 for the m² directions of `face`: U^{d′} and I get
-    /// A·F^{i,d′}·T^i/(h³|Ω^{d′}|), the order's fluence Σ_i |Ω^i|A∫L ds/h³. Returns the
-    /// deposited Σ_v Σ_d′ ΔU^{d′}|Ω^{d′}| and the absorbed Σ_v σa Δφ (both per h³).
+    /// The collect step of LPM Eq 4 for the m² directions of `face` over the slice of sweep
+    /// steps `z0..z1` (T in `lanes`, slice layout): U^{d′} and I get A·F^{i,d′}·T^i/(h³|Ω^{d′}|),
+    /// the order's fluence Σ_i |Ω^i|A∫L ds/h³. Adds the deposited Σ_d′ ΔU^{d′}|Ω^{d′}| and
+    /// the absorbed σa Δφ (both per h³) of each voxel to its row's running sums in `rows`
+    /// (rows of x, index y + n_y z), voxel by voxel in sweep order.
+    ///
+    /// Per voxel the sum over the directions runs k = 0, 1, … from zero whatever the slicing,
+    /// so the fields are bitwise those of the unstreamed solve (T16); the tallies too, since a
+    /// row's voxels are added in sweep order and the rows are folded in row order.
     // One voxel index addresses the T buffers and every output slice at once.
     #[allow(clippy::needless_range_loop)]
     fn collect(
         &self,
         face: usize,
-        gbuf: &[Vec<T>],
-        pbuf: &[Vec<T>],
-        u_cur: &mut [Vec<T>],
-        intensity: &mut [Vec<T>],
-        phi_p: &mut [T],
-    ) -> (f64, f64) {
+        (z0, z1): (usize, usize),
+        lanes: &[Lane<T>],
+        (u_cur, intensity, phi_p): (&mut [Vec<T>], &mut [Vec<T>], &mut [T]),
+        rows: &mut [(f64, f64)],
+    ) {
+        const B: usize = 64;
         let per = self.dirs.per_face();
         let h3 = self.grid.dl.powi(3);
-        let paper = !pbuf.is_empty();
+        let paper = self.config.formulas.deposit == Deposit::Paper;
         let wu: Vec<[T; CONES]> = (0..per)
             .map(|k| {
                 let i = face * per + k;
@@ -581,68 +666,131 @@ impl<T: Real> CpuLpm<T> {
             })
             .collect();
         let d_i = intensity.len();
-        let chunk = self.grid.n[0] * self.grid.n[1];
-        let nchunks = self.grid.n[2];
-        let mut slices: Vec<Vec<&mut [T]>> = (0..nchunks).map(|_| Vec::new()).collect();
-        for buf in u_cur.iter_mut().chain(intensity.iter_mut()) {
-            for (ci, c) in buf.chunks_mut(chunk).enumerate() {
-                slices[ci].push(c);
+        let [nx, ny, nz] = self.grid.n;
+        let a = face / 2;
+        let forward = face % 2 == 0;
+        let na = self.grid.n[a];
+        // The slice's slabs [lo, hi) in grid coordinates of axis a, and a grid slab's index
+        // within the slice (its sweep step − z0).
+        let (lo, hi) = if forward {
+            (z0, z1)
+        } else {
+            (na - z1, na - z0)
+        };
+        let local = |slab: usize| {
+            if forward {
+                slab - z0
+            } else {
+                na - 1 - slab - z0
+            }
+        };
+        let in_slice = |r: usize| match a {
+            0 => true,
+            1 => (lo..hi).contains(&(r % ny)),
+            _ => (lo..hi).contains(&(r / ny)),
+        };
+        // Each row's output slices (6 U, I, φ^p), only the rows that meet the slice.
+        let mut iters: Vec<std::slice::ChunksMut<'_, T>> = u_cur
+            .iter_mut()
+            .chain(intensity.iter_mut())
+            .map(|b| b.chunks_mut(nx))
+            .collect();
+        iters.push(phi_p.chunks_mut(nx));
+        let mut tasks = Vec::new();
+        for (r, part) in rows.iter_mut().enumerate() {
+            if in_slice(r) {
+                let sl: Vec<&mut [T]> = iters.iter_mut().filter_map(|it| it.next()).collect();
+                tasks.push((r, sl, part));
+            } else {
+                iters.iter_mut().for_each(|it| {
+                    it.next();
+                });
             }
         }
-        for (ci, c) in phi_p.chunks_mut(chunk).enumerate() {
-            slices[ci].push(c);
-        }
         let sixth = T::c(1.0 / 6.0);
-        let parts: Vec<(f64, f64)> = slices
-            .into_par_iter()
-            .enumerate()
-            .map(|(ci, mut sl)| {
-                let (mut dep, mut abs) = (0.0, 0.0);
-                // Direction-outer over the slice, per voxel still summed k = 0, 1, … (the
-                // old voxel-outer order, so bit-identical): each T row is read once as a
-                // contiguous stream and every loop vectorises.
-                let range = ci * chunk..(ci + 1) * chunk;
-                let mut acc: Vec<Vec<T>> = (0..CONES).map(|_| vec![T::zero(); chunk]).collect();
-                let mut fls = vec![T::zero(); chunk];
-                for k in 0..per {
-                    let gk = &gbuf[k][range.clone()];
-                    let src = if paper { &pbuf[k][range.clone()] } else { gk };
-                    let w = wphi[k];
-                    for (f, &g) in fls.iter_mut().zip(gk) {
-                        *f = *f + w * g;
+        tasks.into_par_iter().for_each(|(r, mut sl, part)| {
+            let (y, z) = (r % ny, r / ny);
+            // The row's voxels in sweep order: x_j = x_first + j·dx at slice index
+            // lbase + j·lstep.
+            let (x_first, dx, w, lbase, lstep) = match a {
+                0 => (
+                    if forward { lo } else { hi - 1 },
+                    if forward { 1isize } else { -1 },
+                    hi - lo,
+                    y + ny * z,
+                    ny * nz,
+                ),
+                1 => (0, 1, nx, nx * (z + nz * local(y)), 1),
+                _ => (0, 1, nx, nx * (y + ny * local(z)), 1),
+            };
+            let (mut dep, mut abs) = *part;
+            let mut acc = [[T::zero(); B]; CONES];
+            let mut fls = [T::zero(); B];
+            for j0 in (0..w).step_by(B) {
+                let bw = B.min(w - j0);
+                for f in &mut fls[..bw] {
+                    *f = T::zero();
+                }
+                for a in &mut acc {
+                    for a in &mut a[..bw] {
+                        *a = T::zero();
                     }
-                    for (a, &w) in acc.iter_mut().zip(&wu[k]) {
-                        for (a, &x) in a.iter_mut().zip(src) {
-                            *a = *a + w * x;
+                }
+                // Direction-outer over the block, per voxel still summed k = 0, 1, … (the
+                // voxel-outer order, so bit-identical): every loop vectorises where the
+                // slice runs along the row.
+                for k in 0..per {
+                    let gk = &lanes[k].g;
+                    let src = if paper { &lanes[k].p } else { gk };
+                    let wk = wphi[k];
+                    if lstep == 1 {
+                        let l0 = lbase + j0;
+                        let gs = &gk[l0..l0 + bw];
+                        let xs = &src[l0..l0 + bw];
+                        for (f, &g) in fls[..bw].iter_mut().zip(gs) {
+                            *f = *f + wk * g;
+                        }
+                        for (a, &w) in acc.iter_mut().zip(&wu[k]) {
+                            for (a, &x) in a[..bw].iter_mut().zip(xs) {
+                                *a = *a + w * x;
+                            }
+                        }
+                    } else {
+                        let at = |jj: usize| lbase + (j0 + jj) * lstep;
+                        for jj in 0..bw {
+                            fls[jj] = fls[jj] + wk * gk[at(jj)];
+                        }
+                        for (a, &w) in acc.iter_mut().zip(&wu[k]) {
+                            for jj in 0..bw {
+                                a[jj] = a[jj] + w * src[at(jj)];
+                            }
                         }
                     }
                 }
-                for j in 0..chunk {
-                    let v = ci * chunk + j;
+                for j in 0..bw {
+                    let x = (x_first as isize + (j0 + j) as isize * dx) as usize;
+                    let v = x + nx * r;
                     let fl = fls[j];
                     let ss = self.sigma_s[v];
                     let mut total = T::zero();
                     for d in 0..CONES {
                         let du = if paper { acc[d][j] } else { ss * acc[d][j] };
-                        sl[d][j] = sl[d][j] + du;
+                        sl[d][x] = sl[d][x] + du;
                         if d_i == CONES {
-                            sl[CONES + d][j] = sl[CONES + d][j] + du;
+                            sl[CONES + d][x] = sl[CONES + d][x] + du;
                         }
                         total = total + du;
                     }
                     if d_i == 1 {
-                        sl[CONES][j] = sl[CONES][j] + total * sixth;
+                        sl[CONES][x] = sl[CONES][x] + total * sixth;
                     }
-                    sl[CONES + d_i][j] = sl[CONES + d_i][j] + fl;
+                    sl[CONES + d_i][x] = sl[CONES + d_i][x] + fl;
                     dep += total.f() * CONE_SOLID_ANGLE;
                     abs += (self.sigma_t[v] - ss).f() * fl.f();
                 }
-                (dep, abs)
-            })
-            .collect();
-        parts
-            .iter()
-            .fold((0.0, 0.0), |acc, p| (acc.0 + p.0, acc.1 + p.1))
+            }
+            *part = (dep, abs);
+        });
     }
 }
 

@@ -31,7 +31,10 @@
 
 use super::cpu::{CpuLpm, series_threshold};
 use super::directions::{CONE_SOLID_ANGLE, CONES, lateral_axes};
-use super::{BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, OrderTally, Orders, WrapBc};
+use super::{
+    BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, MemoryBytes, OrderTally, Orders,
+    Streaming, WrapBc,
+};
 use crate::gpu::kernel::{
     Access, Checkpointed, Kernel, KernelSpec, run_checkpointed, struct_layout,
 };
@@ -46,8 +49,8 @@ const WG: u32 = 64;
 /// Orders recorded per submission (and read back at once): the checkpoint interval K.
 pub const CHECK_EVERY: usize = 8;
 
-/// Uniforms of `lpm.wgsl` (`Params` there, same fields in the same order; 80 bytes), one per
-/// face.
+/// Uniforms of `lpm.wgsl` (`Params` there, same fields in the same order; 96 bytes), one per
+/// (face, slice).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub(crate) struct GpuParams {
@@ -70,7 +73,11 @@ pub(crate) struct GpuParams {
     rel: f32,
     h3: f32,
     ts: f32,
-    pad: u32,
+    z0: u32,
+    z1: u32,
+    tstride: u32,
+    first: u32,
+    last: u32,
 }
 
 /// One sub-segment (`Seg` in `lpm.wgsl`): absolute lateral offsets and the length in world
@@ -122,7 +129,7 @@ pub(crate) const SPEC: KernelSpec = KernelSpec {
     uniforms: &[(
         "P",
         struct_layout!(GpuParams; nx, ny, nz, nv, face, per, slots, rays, max_rays, wrap, d_i,
-            converge, ring, phi_ring, row, crow, rel, h3, ts, pad),
+            converge, ring, phi_ring, row, crow, rel, h3, ts, z0, z1, tstride, first, last),
     )],
 };
 
@@ -156,10 +163,13 @@ pub struct GpuLpm<'a> {
     dirs: Vec<GpuDir>,
     b: Buffers,
     pipelines: [wgpu::ComputePipeline; 3],
-    /// `binds[parity][face]`: parity p reads U[p] and writes U[1 − p].
+    /// `binds[parity][pass]`: parity p reads U[p] and writes U[1 − p]; one pass per (face,
+    /// slice) in face order, slices in sweep order.
     binds: [Vec<wgpu::BindGroup>; 2],
-    sweep_groups: [[u32; 2]; 6],
-    collect_groups: [u32; 2],
+    /// Per pass: the sweep's and the collect's workgroups.
+    groups: Vec<([u32; 2], [u32; 2])>,
+    slabs: usize,
+    formula: super::MemoryBytes,
     ring: usize,
     phi_ring: usize,
     resident: u64,
@@ -179,6 +189,83 @@ fn too_large(ctx: &GpuContext, what: String, needed: u64, limit_name: &'static s
     }
 }
 
+/// The device buffers of a solve with `slabs` slabs per slice, in words (`T`: the
+/// class-slotted T of one slice), and our per-buffer formula (D18, D19) from them: every
+/// buffer is resident, so the formula's transient part is 0.
+struct DeviceLayout {
+    buffers: Vec<(&'static str, u64)>,
+    formula: MemoryBytes,
+}
+
+fn device_layout(
+    setup: &CpuLpm<f32>,
+    slots: usize,
+    ring: usize,
+    phi_ring: usize,
+    slabs: usize,
+) -> DeviceLayout {
+    let grid = &setup.grid;
+    let n = grid.n;
+    let nv = grid.len() as u64;
+    let per = setup.dirs.per_face() as u64;
+    let d_i = setup.config.storage_i.count() as u64;
+    let max_rays = (0..3)
+        .map(|a| {
+            let (b, c) = lateral_axes(a);
+            (n[b] * n[c]) as u64
+        })
+        .max()
+        .unwrap_or(1);
+    let nsegs: u64 = setup.tables.iter().map(|t| t.segs.len() as u64).sum();
+    let nstarts: u64 = setup.tables.iter().map(|t| t.start.len() as u64).sum();
+    let passes: u64 = (0..6)
+        .map(|f| {
+            let na = n[f / 2];
+            na.div_ceil(slabs.clamp(1, na)) as u64
+        })
+        .sum();
+    let t = (per * slots as u64).saturating_mul(super::slice_voxels(grid, slabs.max(1)));
+    let buffers = vec![
+        ("sub-segment table", 4 * nsegs),
+        ("slab starts", nstarts),
+        ("direction table", 11 * setup.dirs.len() as u64),
+        ("sigma_t", nv),
+        ("sigma_s", nv),
+        ("source", nv),
+        ("U buffer (6 cones)", CONES as u64 * nv),
+        ("U buffer (6 cones)", CONES as u64 * nv),
+        ("T", t),
+        ("I buffer", d_i * nv),
+        ("fluence", nv),
+        ("voxel tallies", 2 * nv),
+        // Two tally words per (direction, ray) of all six faces, then the ray radiances of
+        // one face carried between its slices.
+        ("ray tallies and states", 13 * per * max_rays),
+        ("stats", 4 + 8 * ring as u64 + phi_ring as u64 * nv),
+    ];
+    let w = |name: &str| -> u64 {
+        4 * buffers
+            .iter()
+            .filter(|b| b.0 == name)
+            .map(|b| b.1)
+            .sum::<u64>()
+    };
+    let formula = MemoryBytes {
+        medium: w("sigma_t") + w("sigma_s") + w("source"),
+        u: w("U buffer (6 cones)"),
+        i: w("I buffer"),
+        t: w("T"),
+        fluence: w("fluence"),
+        tables: w("sub-segment table")
+            + w("slab starts")
+            + w("direction table")
+            + passes * std::mem::size_of::<GpuParams>() as u64,
+        tallies: w("voxel tallies") + w("ray tallies and states") + w("stats"),
+        rays: 0,
+    };
+    DeviceLayout { buffers, formula }
+}
+
 impl<'a> GpuLpm<'a> {
     /// Validates as [`CpuLpm::new`] does, checks every buffer and dispatch against the device
     /// limits (typed errors naming the buffer), then uploads the tables and the medium and
@@ -193,13 +280,21 @@ impl<'a> GpuLpm<'a> {
                 "lpm on the GPU: the paper's deposit L(1 − e^{−Ks s}) (formulas.deposit = Paper) runs on the CPU only".into(),
             ));
         }
-        let setup = CpuLpm::<f32>::new(&medium.cast(), config)?;
+        // The host setup (tables, the f32 medium) holds no T: check it as the smallest
+        // streamed CPU solve against the host's memory; the device's own budget is below.
+        let host = LpmConfig {
+            streaming: Streaming::Slabs(1),
+            memory_budget: None,
+            ..config.clone()
+        };
+        let mut setup = CpuLpm::<f32>::new(&medium.cast(), &host)?;
+        setup.config = config.clone();
         let grid = setup.grid;
         let n = grid.n;
         let nv = grid.len();
         let per = setup.dirs.per_face();
-        let d_i = config.storage_i.count();
         let [nx, ny, nz] = n;
+        let n_max = nx.max(ny).max(nz);
         let rays: Vec<usize> = (0..6)
             .map(|f| {
                 let (b, c) = lateral_axes(f / 2);
@@ -217,47 +312,64 @@ impl<'a> GpuLpm<'a> {
         let max_orders = config.max_orders();
         let ring = CHECK_EVERY.min(max_orders).max(1);
         let phi_ring = if config.keep_orders { ring } else { 1 };
-        // Words of every buffer, checked before anything is allocated.
-        let words = |what: &str, count: usize| -> Result<u64, GpuError> {
-            let c = count as u64;
-            if c > u64::from(u32::MAX) {
-                return Err(too_large(
-                    ctx,
-                    format!("the LPM {what} of a {nx}x{ny}x{nz} grid"),
-                    c,
-                    "u32 indexing in lpm.wgsl",
-                ));
-            }
-            ctx.check_storage_buffer(&format!("the LPM {what} of a {nx}x{ny}x{nz} grid"), 4 * c)?;
-            Ok(4 * c)
+        let layout = |slabs: usize| device_layout(&setup, slots, ring, phi_ring, slabs);
+        // Slabs per slice: the class-slotted T of one slice must fit one storage binding (and
+        // u32 indexing), and with a memory budget every buffer together must fit it.
+        let limits = ctx.limits();
+        let bind_max = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        let fits = |s: usize| {
+            let t = (per * slots) as u64 * super::slice_voxels(&grid, s);
+            t <= u64::from(u32::MAX)
+                && 4 * t <= bind_max
+                && config
+                    .memory_budget
+                    .is_none_or(|b| layout(s).formula.total() <= b)
         };
-        let nsegs: usize = setup.tables.iter().map(|t| t.segs.len()).sum();
-        let nstarts: usize = setup.tables.iter().map(|t| t.start.len()).sum();
-        let sizes = [
-            words("sub-segment table", 4 * nsegs)?,
-            words("slab starts", nstarts)?,
-            words("direction table", 11 * setup.dirs.len())?,
-            words("sigma_t", nv)?,
-            words("sigma_s", nv)?,
-            words("source", nv)?,
-            words("U buffer (6 cones)", CONES * nv)?,
-            words("U buffer (6 cones)", CONES * nv)?,
-            words(
-                &format!("class-slotted T buffer ({per} directions x {slots} slots)"),
-                per * slots * nv,
-            )?,
-            words("I buffer", d_i * nv)?,
-            words("fluence", nv)?,
-            words("voxel tallies", 2 * nv)?,
-            words("ray tallies", 2 * 6 * per * max_rays)?,
-            words(
-                "stats (tallies and per-order fluence)",
-                4 + 8 * ring + phi_ring * nv,
-            )?,
-        ];
-        let resident: u64 = sizes.iter().sum::<u64>() + 6 * std::mem::size_of::<GpuParams>() as u64;
-        let mut sweep_groups = [[1u32; 2]; 6];
-        let mut params = Vec::with_capacity(6);
+        let slabs = match config.streaming {
+            Streaming::Whole => n_max,
+            Streaming::Slabs(s) => s.clamp(1, n_max),
+            Streaming::Auto if fits(n_max) => n_max,
+            Streaming::Auto => {
+                let (mut lo, mut hi) = (1usize, n_max);
+                while lo < hi {
+                    let mid = (lo + hi).div_ceil(2);
+                    if fits(mid) {
+                        lo = mid;
+                    } else {
+                        hi = mid - 1;
+                    }
+                }
+                lo
+            }
+        };
+        let plan = layout(slabs);
+        if config.memory_budget.is_some() {
+            config.check_budget_sliced(&grid, plan.formula.total(), slabs)?;
+        }
+        // Every buffer checked against the limits before anything is allocated.
+        for &(what, words) in &plan.buffers {
+            let what = if what == "T" {
+                format!(
+                    "the LPM class-slotted T buffer ({per} directions x {slots} slots x {} slab(s)) of a {nx}x{ny}x{nz} grid",
+                    slabs.min(n_max)
+                )
+            } else {
+                format!("the LPM {what} of a {nx}x{ny}x{nz} grid")
+            };
+            if words > u64::from(u32::MAX) {
+                return Err(too_large(ctx, what, words, "u32 indexing in lpm.wgsl").into());
+            }
+            ctx.check_storage_buffer(&what, 4 * words)?;
+        }
+        let words = |name: &str| {
+            plan.buffers
+                .iter()
+                .find(|b| b.0 == name)
+                .map_or(0, |b| b.1 as usize)
+        };
+        let tstride = super::slice_voxels(&grid, slabs) as usize;
         let threads = |what: &str, count: usize| -> Result<[u32; 2], GpuError> {
             let groups = (count as u64).div_ceil(u64::from(WG));
             let g = u32::try_from(groups).map_err(|_| {
@@ -270,45 +382,58 @@ impl<'a> GpuLpm<'a> {
             })?;
             ctx.split_workgroups(&format!("the LPM {what}"), g)
         };
-        let collect_groups = threads("collect", nv)?;
         let (rel, converge) = match config.orders {
             Orders::Converge { rel, .. } => (rel as f32, 1),
             Orders::Fixed(_) => (0.0, 0),
         };
         let h3 = grid.dl.powi(3);
-        for (f, groups) in sweep_groups.iter_mut().enumerate() {
-            *groups = threads("sweep", per * rays[f])?;
-            params.push(GpuParams {
-                nx: nx as u32,
-                ny: ny as u32,
-                nz: nz as u32,
-                nv: nv as u32,
-                face: f as u32,
-                per: per as u32,
-                slots: slots as u32,
-                rays: rays[f] as u32,
-                max_rays: max_rays as u32,
-                wrap: match config.wrap {
-                    WrapBc::Zero => 0,
-                    WrapBc::Open => 1,
-                    WrapBc::Periodic => 2,
-                },
-                d_i: d_i as u32,
-                converge,
-                ring: ring as u32,
-                phi_ring: phi_ring as u32,
-                row: groups[0] * WG,
-                crow: collect_groups[0] * WG,
-                rel,
-                h3: h3 as f32,
-                ts: series_threshold::<f32>(),
-                pad: 0,
-            });
+        let d_i = config.storage_i.count();
+        let mut params = Vec::new();
+        let mut groups = Vec::new();
+        for (f, &face_rays) in rays.iter().enumerate() {
+            let na = n[f / 2];
+            let step = slabs.min(na);
+            let sweep = threads("sweep", per * face_rays)?;
+            for z0 in (0..na).step_by(step) {
+                let z1 = (z0 + step).min(na);
+                let collect = threads("collect", (z1 - z0) * face_rays)?;
+                groups.push((sweep, collect));
+                params.push(GpuParams {
+                    nx: nx as u32,
+                    ny: ny as u32,
+                    nz: nz as u32,
+                    nv: nv as u32,
+                    face: f as u32,
+                    per: per as u32,
+                    slots: slots as u32,
+                    rays: face_rays as u32,
+                    max_rays: max_rays as u32,
+                    wrap: match config.wrap {
+                        WrapBc::Zero => 0,
+                        WrapBc::Open => 1,
+                        WrapBc::Periodic => 2,
+                    },
+                    d_i: d_i as u32,
+                    converge,
+                    ring: ring as u32,
+                    phi_ring: phi_ring as u32,
+                    row: sweep[0] * WG,
+                    crow: collect[0] * WG,
+                    rel,
+                    h3: h3 as f32,
+                    ts: series_threshold::<f32>(),
+                    z0: z0 as u32,
+                    z1: z1 as u32,
+                    tstride: tstride as u32,
+                    first: u32::from(z0 == 0),
+                    last: u32::from(z1 == na),
+                });
+            }
         }
         // The tables: sub-segment lengths scaled by h and the path factor exactly as the CPU
         // sweep scales them (f64 product, rounded once to f32).
-        let mut segs = Vec::with_capacity(nsegs);
-        let mut starts = Vec::with_capacity(nstarts);
+        let mut segs = Vec::with_capacity(words("sub-segment table") / 4);
+        let mut starts = Vec::with_capacity(words("slab starts"));
         let mut dirs = Vec::with_capacity(setup.dirs.len());
         for (i, (d, t)) in setup.dirs.dirs.iter().zip(&setup.tables).enumerate() {
             let scale = grid.dl * setup.path_factor(i);
@@ -335,10 +460,10 @@ impl<'a> GpuLpm<'a> {
                 wu,
             });
         }
-        let zeros = |words: usize| vec![0u8; 4 * words];
+        let zeros = |name: &str| vec![0u8; 4 * words(name)];
         let b = ctx.allocating(
             &format!("LPM buffers for a {nx}x{ny}x{nz} grid"),
-            resident,
+            plan.formula.total(),
             |dev| Buffers {
                 params: params
                     .iter()
@@ -351,15 +476,15 @@ impl<'a> GpuLpm<'a> {
                 sigma_s: storage_buffer(dev, "lpm sigma_s", bytemuck::cast_slice(&setup.sigma_s)),
                 source: storage_buffer(dev, "lpm source", bytemuck::cast_slice(&setup.source)),
                 u: [
-                    storage_buffer(dev, "lpm U 0", &zeros(CONES * nv)),
-                    storage_buffer(dev, "lpm U 1", &zeros(CONES * nv)),
+                    storage_buffer(dev, "lpm U 0", &zeros("U buffer (6 cones)")),
+                    storage_buffer(dev, "lpm U 1", &zeros("U buffer (6 cones)")),
                 ],
-                tbuf: storage_buffer(dev, "lpm T", &zeros(per * slots * nv)),
-                intensity: storage_buffer(dev, "lpm I", &zeros(d_i * nv)),
-                phi: storage_buffer(dev, "lpm phi", &zeros(nv)),
-                vox: storage_buffer(dev, "lpm voxel tallies", &zeros(2 * nv)),
-                rayt: storage_buffer(dev, "lpm ray tallies", &zeros(12 * per * max_rays)),
-                stats: storage_buffer(dev, "lpm stats", &zeros(4 + 8 * ring + phi_ring * nv)),
+                tbuf: storage_buffer(dev, "lpm T", &zeros("T")),
+                intensity: storage_buffer(dev, "lpm I", &zeros("I buffer")),
+                phi: storage_buffer(dev, "lpm phi", &zeros("fluence")),
+                vox: storage_buffer(dev, "lpm voxel tallies", &zeros("voxel tallies")),
+                rayt: storage_buffer(dev, "lpm ray tallies", &zeros("ray tallies and states")),
+                stats: storage_buffer(dev, "lpm stats", &zeros("stats")),
             },
         )?;
         let kernel = Kernel::new(ctx, &SPEC, &[])?;
@@ -393,6 +518,27 @@ impl<'a> GpuLpm<'a> {
             }
         }
         ctx.check_lost()?;
+        // Measured: the sizes of the buffers as wgpu reports them.
+        let resident = b.params.iter().map(|p| p.size()).sum::<u64>()
+            + [
+                &b.segs,
+                &b.starts,
+                &b.dirs,
+                &b.sigma_t,
+                &b.sigma_s,
+                &b.source,
+                &b.u[0],
+                &b.u[1],
+                &b.tbuf,
+                &b.intensity,
+                &b.phi,
+                &b.vox,
+                &b.rayt,
+                &b.stats,
+            ]
+            .iter()
+            .map(|x| x.size())
+            .sum::<u64>();
         Ok(Self {
             ctx,
             setup,
@@ -400,8 +546,9 @@ impl<'a> GpuLpm<'a> {
             b,
             pipelines,
             binds,
-            sweep_groups,
-            collect_groups,
+            groups,
+            slabs,
+            formula: plan.formula,
             ring,
             phi_ring,
             resident,
@@ -410,6 +557,11 @@ impl<'a> GpuLpm<'a> {
             tallies: Vec::new(),
             phi_orders: Vec::new(),
         })
+    }
+
+    /// Slabs per slice of this solver's sweeps (≥ the longest axis: not streamed).
+    pub fn slabs(&self) -> usize {
+        self.slabs
     }
 
     /// The grid.
@@ -494,8 +646,9 @@ impl<'a> GpuLpm<'a> {
         let split =
             |v: Vec<f32>| -> Vec<Vec<f32>> { v.chunks(nv as usize).map(|c| c.to_vec()).collect() };
         let memory = Memory {
-            formula: super::memory_bytes(&grid, &self.setup.config, 4),
+            formula: self.formula,
             resident_measured: self.resident,
+            slabs: self.slabs,
         };
         Ok(LpmSolution {
             grid,
@@ -529,12 +682,12 @@ impl Checkpointed for GpuLpm<'_> {
     fn record(&mut self, pass: &mut wgpu::ComputePass<'_>, n: u32) {
         for _ in 0..n {
             let set = &self.binds[self.parity];
-            for (f, bind) in set.iter().enumerate() {
+            for (bind, (sweep, collect)) in set.iter().zip(&self.groups) {
                 pass.set_bind_group(0, bind, &[]);
                 pass.set_pipeline(&self.pipelines[0]);
-                pass.dispatch_workgroups(self.sweep_groups[f][0], self.sweep_groups[f][1], 1);
+                pass.dispatch_workgroups(sweep[0], sweep[1], 1);
                 pass.set_pipeline(&self.pipelines[1]);
-                pass.dispatch_workgroups(self.collect_groups[0], self.collect_groups[1], 1);
+                pass.dispatch_workgroups(collect[0], collect[1], 1);
             }
             pass.set_pipeline(&self.pipelines[2]);
             pass.dispatch_workgroups(1, 1, 1);

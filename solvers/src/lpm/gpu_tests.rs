@@ -1,4 +1,4 @@
-//! Tests of the LPM GPU kernels (T7, T15, T18, T20 on the GPU; T24 is `tests/wgsl.rs` and
+//! Tests of the LPM GPU kernels (T7, T15, T16, T17, T18, T20 on the GPU; T24 is `tests/wgsl.rs` and
 //! `tests/kernel_contract.rs`). Without an adapter each test prints one "skipped" line and
 //! passes, unless `SCATTERBENCH_REQUIRE_GPU=1`. Sizes are for lavapipe (≤ 16³, m ≤ 5).
 //! Numbers quoted in `mod.rs` are printed by these tests
@@ -353,7 +353,11 @@ fn t20_hard_inputs_on_gpu() {
         let t_bytes = 25 * 3 * big.len() as u64 * 4;
         if t_bytes > ctx.limits().max_storage_buffer_binding_size {
             let hb = Medium::homogeneous(big, 1.0, 0.5).unwrap();
-            match GpuLpm::new(ctx, &hb, &cfg) {
+            let whole = LpmConfig {
+                streaming: Streaming::Whole,
+                ..cfg.clone()
+            };
+            match GpuLpm::new(ctx, &hb, &whole) {
                 Err(e) => {
                     let msg = e.to_string();
                     assert!(msg.contains("T buffer"), "{msg}");
@@ -361,5 +365,124 @@ fn t20_hard_inputs_on_gpu() {
                 Ok(_) => panic!("a {t_bytes}-byte T buffer was accepted"),
             }
         }
+    });
+}
+
+/// T16 on the GPU: S ∈ {1, 4, 16, n} slabs per slice on a non-cubic 20×13×18 white-noise
+/// medium under an environment plus a directional light give the unstreamed GPU solve's
+/// fields, orders and tallies (bound 10⁻⁶ relative; measured bitwise, asserted below as
+/// well), for the open and the periodic wrap, six I buffers with g = 0.6 and the stopping
+/// rule; and the streamed GPU matches CPU-f32 within T18's bounds. T17 on the GPU: the sizes
+/// of the allocated wgpu buffers equal our device formula exactly at every S.
+#[test]
+fn t16_gpu_streamed_equals_unstreamed() {
+    with_gpu("t16_gpu_streamed_equals_unstreamed", |ctx| {
+        let medium = random_medium([20, 13, 18], 31);
+        let b = lights(5);
+        let cases = [
+            ("open", LpmConfig::default()),
+            (
+                "periodic, HG g = 0.6, six I, converge",
+                LpmConfig {
+                    wrap: WrapBc::Periodic,
+                    phase: crate::scene::Phase::HenyeyGreenstein { g: 0.6 },
+                    storage_i: StorageI::Six,
+                    orders: Orders::Converge {
+                        rel: 1e-3,
+                        max_orders: 6,
+                    },
+                    ..LpmConfig::default()
+                },
+            ),
+        ];
+        for (what, cfg) in cases {
+            let at = |streaming| LpmConfig {
+                streaming,
+                ..cfg.clone()
+            };
+            let whole = gpu_run(ctx, &medium, &b, &at(Streaming::Whole));
+            assert_eq!(whole.memory.slabs, 20);
+            for s in [1, 4, 16, 20] {
+                let g = gpu_run(ctx, &medium, &b, &at(Streaming::Slabs(s)));
+                assert_eq!(g.memory.slabs, s);
+                assert_eq!(g.memory.resident_measured, g.memory.formula.total());
+                assert_eq!(g.memory.formula.rays, 0);
+                assert_eq!(g.orders, whole.orders);
+                assert_eq!(g.stop, whole.stop);
+                let mut fields: Vec<(&[f64], &[f64])> = vec![(&g.phi, &whole.phi)];
+                for (x, y) in g.intensity.iter().zip(&whole.intensity) {
+                    fields.push((x, y));
+                }
+                for (x, y) in g.unshot.iter().zip(&whole.unshot) {
+                    fields.push((x, y));
+                }
+                for (x, y) in g.phi_orders.iter().zip(&whole.phi_orders) {
+                    fields.push((x, y));
+                }
+                let worst = fields
+                    .iter()
+                    .map(|(x, y)| diff(x, y).0)
+                    .fold(0.0f64, f64::max);
+                let bitwise = fields.iter().all(|(x, y)| x == y) && g.tallies == whole.tallies;
+                eprintln!(
+                    "T16 GPU {what} S = {s}: max rel vs unstreamed {worst:.2e}, bitwise {bitwise}, device bytes {}",
+                    g.memory.resident_measured
+                );
+                assert!(worst <= 1e-6, "T16 GPU {what} S = {s}: {worst:e}");
+                assert!(bitwise, "T16 GPU {what} S = {s}: not bitwise");
+            }
+            let (worst, rmse) = compare(
+                &format!("T16 GPU {what} S = 4 vs CPU-f32"),
+                &gpu_run(ctx, &medium, &b, &at(Streaming::Slabs(4))),
+                &cpu_run(&medium, &b, &at(Streaming::Slabs(4))),
+            );
+            assert!(worst < 1e-5 && rmse < 1e-6, "{worst:e}, {rmse:e}");
+        }
+    });
+}
+
+/// 128³ (m = 5) solves on the GPU with slice streaming where the unstreamed T exceeds the
+/// storage-binding limit (lavapipe's 128 MiB; `t20_hard_inputs_on_gpu` keeps the refusal of
+/// `Streaming::Whole`): `Auto` picks the largest S whose T fits one binding, the device bytes
+/// equal our formula, and one order on a homogeneous σt h = 0.05, α = 0.9 cube under L = 1
+/// is finite, positive and balanced (imbalance ≤ 10⁻⁴ of the input, f32).
+#[test]
+fn gpu_128_cubed_solves_with_streaming() {
+    with_gpu("gpu_128_cubed_solves_with_streaming", |ctx| {
+        let grid = Grid::new([128, 128, 128], 0.05).unwrap();
+        let t_bytes = 25 * 3 * grid.len() as u64 * 4;
+        let bind = ctx.limits().max_storage_buffer_binding_size;
+        if t_bytes <= bind {
+            eprintln!(
+                "128³: the unstreamed T ({t_bytes} B) fits this device's binding; nothing to show"
+            );
+            return;
+        }
+        let medium = Medium::homogeneous(grid, 1.0, 0.9).unwrap();
+        let dirs = Directions::new(5).unwrap();
+        let cfg = LpmConfig {
+            orders: Orders::Fixed(1),
+            keep_orders: false,
+            ..LpmConfig::default()
+        };
+        let mut solver = GpuLpm::new(ctx, &medium, &cfg).unwrap();
+        let s = solver.slabs();
+        assert!((1..128).contains(&s), "Auto chose S = {s}");
+        let t0 = std::time::Instant::now();
+        let sol = solver
+            .solve(&BoundaryLight::uniform(&dirs, 1.0), |_, _| {})
+            .unwrap();
+        assert_eq!(sol.memory.resident_measured, sol.memory.formula.total());
+        assert!(sol.memory.formula.t <= bind);
+        assert!(sol.phi.iter().all(|x| x.is_finite() && *x > 0.0));
+        assert!(sol.intensity[0].iter().all(|x| x.is_finite() && *x > 0.0));
+        let imbalance = sol.tallies[0].imbalance().abs();
+        eprintln!(
+            "128³ GPU: Auto S = {s} (T {} B ≤ binding {bind} B; unstreamed T {t_bytes} B), device bytes {}, one order {:.1} s wall, imbalance {imbalance:.2e}",
+            sol.memory.formula.t,
+            sol.memory.resident_measured,
+            t0.elapsed().as_secs_f64()
+        );
+        assert!(imbalance < 1e-4, "{imbalance:e}");
     });
 }

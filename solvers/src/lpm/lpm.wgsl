@@ -13,7 +13,15 @@
 // sums in a fixed order (strided per thread, then a tree). Nothing is ever written by two
 // threads of one dispatch, so results are deterministic.
 //
+// Slice streaming (D19): each face's sweep axis is cut into slices of S slabs; per slice
+// `sweep` marches the rays through its slabs, starting from the ray radiances and tallies
+// the previous slice left in `rayt`, and `collect` gathers the slice's voxels. tbuf holds one
+// slice in the layout vl = b + nb * (c + nc * (z - z0)) (z the sweep step). The operations
+// per ray and per voxel are those of the unstreamed sweep, in the same order.
+//
 // Voxel v = x + nx * (y + ny * z). Buffers: U (6 cones x nv) ping-pong as uprev/ucur;
+// rayt = [2 tally words per (direction, ray) of all faces (raw sums between slices, times
+// A|Omega| after the last), then the ray radiance per (direction of the face, ray)];
 // stats = [order, done, first unshot (f32 bits), 0, tallies ring (8 words per order),
 // per-order fluence ring (nv words per order, f32 bits)].
 
@@ -49,7 +57,14 @@ struct Params {
     h3: f32,
     // Series threshold of phis (0.5 in f32).
     ts: f32,
-    pad: u32,
+    // The slice of this dispatch: sweep steps z0..z1 of the face (slice streaming, D19).
+    z0: u32,
+    z1: u32,
+    // Words per (direction, slot) plane of tbuf (the largest slice's voxels).
+    tstride: u32,
+    // 1 when the slice starts (z0 = 0) / ends (z1 = the axis length) the face's sweep.
+    first: u32,
+    last: u32,
 }
 
 struct Seg {
@@ -171,13 +186,25 @@ fn sweep(@builtin(global_invocation_id) gid: vec3<u32>) {
         l0 = d.l_bc;
     }
     let re = select(0.0, l0, P.wrap == 1u);
+    let t = 2u * (i * P.max_rays + r);
+    let ls = 12u * P.per * P.max_rays + k * P.max_rays + r;
     var l = l0;
     var injected = l0;
     var exited = 0.0;
     var pb = 0;
     var pc = 0;
+    if (P.first == 0u) {
+        // Carried from the previous slice: the radiance, the raw tallies, and the lateral
+        // offsets of the last sub-segment of the previous slab (for the wrap events).
+        l = rayt[ls];
+        injected = rayt[t];
+        exited = rayt[t + 1u];
+        let sp = segs[starts[d.start_base + P.z0] - 1u];
+        pb = sp.ob;
+        pc = sp.oc;
+    }
     let nv = P.nv;
-    for (var z = 0u; z < na; z = z + 1u) {
+    for (var z = P.z0; z < P.z1; z = z + 1u) {
         let slab = select(na - 1u - z, z, forward);
         let s0 = starts[d.start_base + z];
         let s1 = starts[d.start_base + z + 1u];
@@ -202,18 +229,24 @@ fn sweep(@builtin(global_invocation_id) gid: vec3<u32>) {
             c[bc.x] = vb;
             c[bc.y] = vc;
             let v = c[0] + P.nx * (c[1] + P.ny * c[2]);
+            let vl = vb + nb * (vc + nc * (z - P.z0));
             let u = uprev[face * nv + v];
             let len = sg.len;
             let f = phis(sigma_t[v] * len, P.ts);
             let l_out = l * f.x + u * len * f.y;
-            tbuf[(k * P.slots + (s - s0)) * nv + v] = len * (l * f.y + u * len * f.z);
+            tbuf[(k * P.slots + (s - s0)) * P.tstride + vl] = len * (l * f.y + u * len * f.z);
             l = l_out;
         }
     }
-    exited = exited + l;
-    let t = 2u * (i * P.max_rays + r);
-    rayt[t] = d.w * injected;
-    rayt[t + 1u] = d.w * exited;
+    if (P.last != 0u) {
+        exited = exited + l;
+        rayt[t] = d.w * injected;
+        rayt[t + 1u] = d.w * exited;
+    } else {
+        rayt[t] = injected;
+        rayt[t + 1u] = exited;
+        rayt[ls] = l;
+    }
 }
 
 // The collect of LPM Eq 4 at one voxel for the m * m directions of face P.face, in the CPU's
@@ -224,17 +257,24 @@ fn collect(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (stats[1] != 0u) {
         return;
     }
-    let v = gid.x + gid.y * P.crow;
+    // Thread id = the voxel's index vl = b + nb * (c + nc * (z - z0)) in the slice.
+    let id = gid.x + gid.y * P.crow;
     let nv = P.nv;
-    if (v >= nv) {
-        return;
-    }
     let face = P.face;
     let a = face / 2u;
     let na = dim(a);
-    var xyz = array<u32, 3>(v % P.nx, (v / P.nx) % P.ny, v / (P.nx * P.ny));
-    let ca = xyz[a];
-    let z = select(na - 1u - ca, ca, (face % 2u) == 0u);
+    let bc = lateral(a);
+    let nb = dim(bc.x);
+    let nc = dim(bc.y);
+    if (id >= (P.z1 - P.z0) * nb * nc) {
+        return;
+    }
+    let z = P.z0 + id / (nb * nc);
+    var xyz = array<u32, 3>(0u, 0u, 0u);
+    xyz[a] = select(na - 1u - z, z, (face % 2u) == 0u);
+    xyz[bc.x] = id % nb;
+    xyz[bc.y] = (id / nb) % nc;
+    let v = xyz[0] + P.nx * (xyz[1] + P.ny * xyz[2]);
     var fl = 0.0;
     var acc = array<f32, 6>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     for (var k = 0u; k < P.per; k = k + 1u) {
@@ -243,7 +283,7 @@ fn collect(@builtin(global_invocation_id) gid: vec3<u32>) {
         let s1 = starts[d.start_base + z + 1u];
         var g = 0.0;
         for (var s = s0; s < s1; s = s + 1u) {
-            g = g + tbuf[(k * P.slots + (s - s0)) * nv + v];
+            g = g + tbuf[(k * P.slots + (s - s0)) * P.tstride + id];
         }
         fl = fl + d.wphi * g;
         for (var q = 0u; q < 6u; q = q + 1u) {

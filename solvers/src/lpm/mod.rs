@@ -315,6 +315,22 @@ pub enum Orders {
     },
 }
 
+/// Slice streaming along the sweep axis (§4.2, Fig 5, D19): how many slabs of the sweep
+/// axis one slice holds. T (∫L ds of the m² directions of one LPM) is allocated for one
+/// slice only; every direction's ray state is carried from slice to slice, and each slice is
+/// collected before the next is swept. The results do not depend on it (T16).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Streaming {
+    /// No streaming: T spans the whole sweep axis.
+    Whole,
+    /// S slabs per slice (S ≥ 1; an axis shorter than S is one slice).
+    Slabs(usize),
+    /// The whole grid when it fits the memory budget, else the largest S that fits (and, on
+    /// the GPU, the storage-binding limit). Default.
+    #[default]
+    Auto,
+}
+
 /// The settings of an LPM solve.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LpmConfig {
@@ -336,6 +352,8 @@ pub struct LpmConfig {
     pub memory_budget: Option<u64>,
     /// Keep the fluence of every order ([`LpmSolution::phi_orders`]).
     pub keep_orders: bool,
+    /// Slice streaming.
+    pub streaming: Streaming,
 }
 
 impl Default for LpmConfig {
@@ -351,6 +369,7 @@ impl Default for LpmConfig {
             quadrature: 6,
             memory_budget: None,
             keep_orders: true,
+            streaming: Streaming::Auto,
         }
     }
 }
@@ -360,6 +379,13 @@ impl LpmConfig {
     pub fn validate(&self) -> Result<(), SolverError> {
         directions::Directions::new(self.m).map(|_| ())?;
         self.phase.validate()?;
+        if self.streaming == Streaming::Slabs(0) {
+            return Err(SolverError::BadParameter {
+                name: "streaming",
+                value: 0.0,
+                reason: "a slice needs at least 1 slab",
+            });
+        }
         match self.orders {
             Orders::Fixed(0) => Err(SolverError::BadParameter {
                 name: "orders",
@@ -395,23 +421,82 @@ impl LpmConfig {
         }
     }
 
-    /// Refuses `needed` bytes on `grid` above the budget.
+    /// Refuses `needed` bytes on `grid` above the budget (`slabs`: the slabs per slice of
+    /// the solve, for the message; ≥ the longest axis means without streaming).
     pub fn check_budget(&self, grid: &Grid, needed: u64) -> Result<(), SolverError> {
+        self.check_budget_sliced(grid, needed, usize::MAX)
+    }
+
+    /// [`Self::check_budget`] for a solve streamed with `slabs` slabs per slice.
+    pub fn check_budget_sliced(
+        &self,
+        grid: &Grid,
+        needed: u64,
+        slabs: usize,
+    ) -> Result<(), SolverError> {
+        let n_max = grid.n.iter().copied().max().unwrap_or(1);
+        let how = if slabs >= n_max {
+            "without streaming".to_string()
+        } else {
+            format!("streaming = {slabs} slab(s) per slice")
+        };
         let what = format!(
-            "LPM grid {}x{}x{} (m = {}, without streaming)",
+            "LPM grid {}x{}x{} (m = {}, {how})",
             grid.n[0], grid.n[1], grid.n[2], self.m
         );
-        match self.memory_budget {
-            Some(available) if needed > available => Err(crate::budget::TooLarge {
+        let (available, origin) = self.budget();
+        if needed > available {
+            return Err(crate::budget::TooLarge {
                 what,
                 needed,
                 available,
-                origin: "memory_budget of the LPM settings",
+                origin,
             }
-            .into()),
-            Some(_) => Ok(()),
-            None => Ok(crate::budget::check(what, needed)?),
+            .into());
         }
+        Ok(())
+    }
+
+    /// The memory budget in bytes and where it comes from.
+    pub fn budget(&self) -> (u64, &'static str) {
+        match self.memory_budget {
+            Some(b) => (b, "memory_budget of the LPM settings"),
+            None => crate::budget::available(),
+        }
+    }
+
+    /// The slabs per slice of a solve on `grid` with `word` bytes per value (CPU): the longest
+    /// axis for [`Streaming::Whole`], S for [`Streaming::Slabs`], and for
+    /// [`Streaming::Auto`] the longest axis when the whole grid fits the budget, else the
+    /// largest S whose [`memory_bytes_sliced`] total fits; a typed error naming the grid and
+    /// the streaming when nothing fits (S = 1 for `Auto`).
+    pub fn slabs(&self, grid: &Grid, word: u64) -> Result<usize, SolverError> {
+        let n_max = grid.n.iter().copied().max().unwrap_or(1);
+        let need = |s: usize| memory_bytes_sliced(grid, self, word, s).total();
+        let s = match self.streaming {
+            Streaming::Whole => n_max,
+            Streaming::Slabs(s) => s.clamp(1, n_max),
+            Streaming::Auto => {
+                let (available, _) = self.budget();
+                if need(n_max) <= available {
+                    n_max
+                } else {
+                    // The total grows with S: bisect for the largest S that fits.
+                    let (mut lo, mut hi) = (1usize, n_max);
+                    while lo < hi {
+                        let mid = (lo + hi).div_ceil(2);
+                        if need(mid) <= available {
+                            lo = mid;
+                        } else {
+                            hi = mid - 1;
+                        }
+                    }
+                    lo
+                }
+            }
+        };
+        self.check_budget_sliced(grid, need(s), s)?;
+        Ok(s)
     }
 }
 
@@ -495,13 +580,15 @@ impl OrderTally {
 /// Bytes of a solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Memory {
-    /// Our per-buffer formula ([`memory_bytes`]).
+    /// Our per-buffer formula ([`memory_bytes_sliced`] at the solve's slabs per slice).
     pub formula: MemoryBytes,
-    /// Bytes of the resident buffers as allocated (Σ capacities).
+    /// Bytes of the resident buffers as allocated (Σ capacities; on the GPU Σ buffer sizes).
     pub resident_measured: u64,
+    /// Slabs per slice of the solve (≥ the longest axis: not streamed).
+    pub slabs: usize,
 }
 
-/// Our explicit per-buffer byte count (D18).
+/// Our explicit per-buffer byte count (D18, D19).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MemoryBytes {
     /// σt, σs and the source j/4π, and σt, σs again in the x-faces' layout.
@@ -510,22 +597,34 @@ pub struct MemoryBytes {
     pub u: u64,
     /// I (1 or 6).
     pub i: u64,
-    /// T (∫L ds) of the m² directions of one LPM, and the paper's deposit buffer if used.
+    /// T (∫L ds) of the m² directions of one LPM over one slice (S slabs of the sweep axis at
+    /// full lateral extent, the largest over the three axes), and the paper's deposit buffer
+    /// if used.
     pub t: u64,
     /// Total φ and the kept per-order fluences (at the order cap).
     pub fluence: u64,
-    /// Geometry tables.
+    /// Geometry tables (on the GPU also the direction table and the uniforms).
     pub tables: u64,
-    /// Transient: ray states (m² of the largest face, one per direction task), the x-faces'
-    /// scratch T (and paper deposit) per direction task and their transposed U (upper bound:
-    /// every task at once).
+    /// GPU only (0 on the CPU): the voxel and ray tallies, the ray radiances carried between
+    /// slices and the stats buffer (with the per-order fluence ring).
+    pub tallies: u64,
+    /// Transient: ray states (m² of the largest face, one per direction, carried from slice
+    /// to slice), the x-faces' transposed U, the order's fluence when it is not kept, and
+    /// the collect's per-row tallies (two f64 per row of x).
     pub rays: u64,
 }
 
 impl MemoryBytes {
     /// Everything.
     pub fn total(&self) -> u64 {
-        self.medium + self.u + self.i + self.t + self.fluence + self.tables + self.rays
+        self.medium
+            + self.u
+            + self.i
+            + self.t
+            + self.fluence
+            + self.tables
+            + self.tallies
+            + self.rays
     }
 
     /// The resident part (without the transient ray states).
@@ -534,8 +633,36 @@ impl MemoryBytes {
     }
 }
 
-/// Our per-buffer formula for `grid`, `config` and `word` bytes per value.
+/// Our per-buffer formula for `grid`, `config` and `word` bytes per value at the slabs per
+/// slice that `config.streaming` resolves to ([`LpmConfig::slabs`]; S = 1 where nothing fits).
 pub fn memory_bytes(grid: &Grid, config: &LpmConfig, word: u64) -> MemoryBytes {
+    let s = config.slabs(grid, word).unwrap_or(match config.streaming {
+        Streaming::Slabs(s) => s.max(1),
+        Streaming::Whole => usize::MAX,
+        Streaming::Auto => 1,
+    });
+    memory_bytes_sliced(grid, config, word, s)
+}
+
+/// Voxels of the largest slice of `slabs` slabs along any sweep axis: max_a min(S, n_a)·n_b·n_c.
+pub fn slice_voxels(grid: &Grid, slabs: usize) -> u64 {
+    let n = grid.n;
+    (0..3)
+        .map(|a| {
+            let (b, c) = directions::lateral_axes(a);
+            (slabs.min(n[a]) * n[b] * n[c]) as u64
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// Our per-buffer formula with `slabs` slabs per slice (≥ the longest axis: unstreamed).
+pub fn memory_bytes_sliced(
+    grid: &Grid,
+    config: &LpmConfig,
+    word: u64,
+    slabs: usize,
+) -> MemoryBytes {
     let nv = grid.len() as u64;
     let m = config.m.min(directions::MAX_M) as u64;
     let per = m * m;
@@ -546,7 +673,7 @@ pub fn memory_bytes(grid: &Grid, config: &LpmConfig, word: u64) -> MemoryBytes {
         0
     };
     let n = grid.n;
-    let slabs: u64 = (0..6).map(|f| n[f / 2] as u64).sum::<u64>() * per;
+    let table_slabs: u64 = (0..6).map(|f| n[f / 2] as u64).sum::<u64>() * per;
     let seg = std::mem::size_of::<geometry::Seg>() as u64;
     let usz = std::mem::size_of::<usize>() as u64;
     let lateral = (0..3)
@@ -557,18 +684,18 @@ pub fn memory_bytes(grid: &Grid, config: &LpmConfig, word: u64) -> MemoryBytes {
         .max()
         .unwrap_or(0);
     let sat = |x: u64, y: u64| x.saturating_mul(y);
+    let slice = slice_voxels(grid, slabs.max(1));
+    let rows = (n[1] * n[2]) as u64;
     MemoryBytes {
         medium: sat(5 * nv, word),
         u: sat(2 * 6 * nv, word),
         i: sat(config.storage_i.count() as u64 * nv, word),
-        t: sat(sat(per * if paper { 2 } else { 1 }, nv), word),
+        t: sat(sat(per * if paper { 2 } else { 1 }, slice), word),
         fluence: sat(sat(1 + kept, nv), word),
         // Table capacities: ≤ 3 sub-segments per slab, slabs + 1 starts per direction.
-        tables: slabs * 3 * seg + (slabs + 6 * per) * usz,
-        rays: sat(
-            sat(per, lateral) + sat(per * if paper { 2 } else { 1 }, nv) + 2 * nv,
-            word,
-        ),
+        tables: table_slabs * 3 * seg + (table_slabs + 6 * per) * usz,
+        tallies: 0,
+        rays: sat(sat(per, lateral) + 2 * nv, word) + 16 * rows,
     }
 }
 
@@ -576,6 +703,12 @@ pub fn memory_bytes(grid: &Grid, config: &LpmConfig, word: u64) -> MemoryBytes {
 /// 4·nbSpect·((1 + 2U + I)n³ + p n² + p n³).
 pub fn paper_memory_bytes(n: u64, u: u64, i: u64, p: u64, spectra: u64) -> u64 {
     4 * spectra * ((1 + 2 * u + i) * n * n * n + p * n * n + p * n * n * n)
+}
+
+/// The paper's memory formula with streaming (§5), bytes, slice width `s` slabs:
+/// 4·nbSpect·((1 + 2U + I)S n² + S p n² + p n²).
+pub fn paper_streaming_memory_bytes(n: u64, u: u64, i: u64, p: u64, s: u64, spectra: u64) -> u64 {
+    4 * spectra * ((1 + 2 * u + i) * s * n * n + s * p * n * n + p * n * n)
 }
 
 /// The result of an LPM solve.

@@ -1,4 +1,4 @@
-//! Tests of the LPM CPU core: the spec tests T1–T8, T13, T17, T19–T23 that apply to it, the
+//! Tests of the LPM CPU core: the spec tests T1–T8, T13, T16, T17, T19–T23 that apply to it, the
 //! furnace that separates the exact and the paper's formulas (acceptance 2) and the typed
 //! errors (acceptance 5). Numbers quoted in `mod.rs` are printed by these tests
 //! (`cargo test --release -p solvers --lib lpm:: -- --nocapture`).
@@ -584,6 +584,212 @@ fn t17_memory_matches_the_formula() {
     eprintln!(
         "T17 64³ f32 mono, 3 orders: ours {ours} B; paper formula (U = 6, I = 1, p = 25, 1 channel) {} B",
         paper_memory_bytes(64, 6, 1, 25, 1)
+    );
+}
+
+/// Two solutions are bitwise equal: every field, the orders, the stop and the f64 tallies.
+fn assert_bitwise(what: &str, a: &LpmSolution<f64>, b: &LpmSolution<f64>) {
+    assert_eq!(a.orders, b.orders, "{what}: orders");
+    assert_eq!(a.stop, b.stop, "{what}: stop");
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+    for (x, y) in a.intensity.iter().zip(&b.intensity) {
+        assert!(bits(x) == bits(y), "{what}: I");
+    }
+    for (x, y) in a.unshot.iter().zip(&b.unshot) {
+        assert!(bits(x) == bits(y), "{what}: U");
+    }
+    assert!(bits(&a.phi) == bits(&b.phi), "{what}: φ");
+    assert_eq!(
+        a.phi_orders.len(),
+        b.phi_orders.len(),
+        "{what}: kept orders"
+    );
+    for (x, y) in a.phi_orders.iter().zip(&b.phi_orders) {
+        assert!(bits(x) == bits(y), "{what}: φ^p");
+    }
+    assert_eq!(a.tallies, b.tallies, "{what}: tallies");
+}
+
+/// An environment of radiance 1 plus a directional light of irradiance 2 (m = 5).
+fn environment_and_sun() -> BoundaryLight {
+    let dirs = Directions::new(5).unwrap();
+    let mut b = BoundaryLight::uniform(&dirs, 1.0);
+    let d = BoundaryLight::directional(&dirs, [0.3, -0.2, 0.9], 2.0).unwrap();
+    for (x, y) in b.radiance.iter_mut().zip(&d.radiance) {
+        *x += y;
+    }
+    b
+}
+
+/// T16: slice streaming changes nothing. On a non-cubic 20×13×18 white-noise medium under an
+/// environment plus a directional light, S ∈ {1, 4, 16, n} slabs per slice give bitwise the
+/// unstreamed fields (I, U, φ, φ^p), orders and tallies, in f32 and f64, for every wrap rule,
+/// the paper's formulas, six I buffers with g = 0.6 and the relative stopping rule.
+#[test]
+fn t16_streamed_equals_unstreamed() {
+    let medium = random_medium([20, 13, 18], 31);
+    let b = environment_and_sun();
+    let cases = [
+        ("open", LpmConfig::default()),
+        (
+            "zero wrap",
+            LpmConfig {
+                wrap: WrapBc::Zero,
+                ..LpmConfig::default()
+            },
+        ),
+        (
+            "periodic, HG g = 0.6, six I, converge",
+            LpmConfig {
+                wrap: WrapBc::Periodic,
+                phase: Phase::HenyeyGreenstein { g: 0.6 },
+                storage_i: StorageI::Six,
+                orders: Orders::Converge {
+                    rel: 1e-3,
+                    max_orders: 6,
+                },
+                ..LpmConfig::default()
+            },
+        ),
+        (
+            "paper formulas",
+            LpmConfig {
+                formulas: Formulas::paper(),
+                ..LpmConfig::default()
+            },
+        ),
+    ];
+    for (what, cfg) in cases {
+        for p in BACKENDS {
+            let whole = run(
+                p,
+                &medium,
+                &b,
+                &LpmConfig {
+                    streaming: Streaming::Whole,
+                    ..cfg.clone()
+                },
+            );
+            assert_eq!(whole.memory.slabs, 20);
+            assert!(whole.tallies.iter().all(|t| t.scattered > 0.0));
+            for s in [1, 4, 16, 20] {
+                let c = LpmConfig {
+                    streaming: Streaming::Slabs(s),
+                    ..cfg.clone()
+                };
+                let streamed = run(p, &medium, &b, &c);
+                assert_eq!(streamed.memory.slabs, s);
+                assert_bitwise(&format!("T16 {what} {p:?} S = {s}"), &streamed, &whole);
+            }
+            eprintln!(
+                "T16 {what} {p:?}: S = 1, 4, 16, 20 bitwise equal to the unstreamed solve ({} orders)",
+                whole.orders
+            );
+        }
+    }
+}
+
+/// T17 with streaming: at every S the resident bytes as allocated equal our formula exactly;
+/// a budget between the S = 1 and the unstreamed totals makes `Auto` pick the largest S that
+/// fits (resident and total ≤ budget, S + 1 over it) with results bitwise those of the
+/// unstreamed solve; a budget below S = 1, or `Whole` beyond it, is a typed error naming the
+/// streaming; S = 0 is refused naming `streaming`.
+#[test]
+fn t17_streaming_memory_and_budget() {
+    let medium = random_medium([16, 12, 20], 8);
+    let b = environment_and_sun();
+    let grid = medium.grid;
+    for p in BACKENDS {
+        let word = if p == Precision::F64 { 8 } else { 4 };
+        for s in [1, 3, 8, 20] {
+            let cfg = LpmConfig {
+                streaming: Streaming::Slabs(s),
+                ..LpmConfig::default()
+            };
+            let sol = run(p, &medium, &b, &cfg);
+            assert_eq!(
+                sol.memory.resident_measured,
+                sol.memory.formula.resident(),
+                "{p:?} S = {s}"
+            );
+            assert_eq!(
+                sol.memory.formula,
+                memory_bytes_sliced(&grid, &cfg, word, s)
+            );
+        }
+        let whole = memory_bytes_sliced(&grid, &LpmConfig::default(), word, 20).total();
+        let one = memory_bytes_sliced(&grid, &LpmConfig::default(), word, 1).total();
+        let budget = (whole + one) / 2;
+        let cfg = LpmConfig {
+            memory_budget: Some(budget),
+            ..LpmConfig::default()
+        };
+        let sol = run(p, &medium, &b, &cfg);
+        let s = sol.memory.slabs;
+        assert!((1..20).contains(&s), "{p:?}: Auto chose S = {s}");
+        assert!(sol.memory.formula.total() <= budget);
+        assert!(sol.memory.resident_measured <= budget);
+        assert!(memory_bytes_sliced(&grid, &cfg, word, s + 1).total() > budget);
+        let reference = run(
+            p,
+            &medium,
+            &b,
+            &LpmConfig {
+                streaming: Streaming::Whole,
+                ..LpmConfig::default()
+            },
+        );
+        assert_bitwise(&format!("T17 {p:?} Auto S = {s}"), &sol, &reference);
+        eprintln!(
+            "T17 {p:?} 16x12x20: budget {budget} B → Auto S = {s}: resident {} B = formula, total {} B (unstreamed {whole} B, S = 1 {one} B)",
+            sol.memory.resident_measured,
+            sol.memory.formula.total()
+        );
+        let message = |cfg: LpmConfig| match solve(&Backend::Cpu(p), &medium, &b, &cfg, |_, _| {}) {
+            Err(SolverError::TooLarge(e)) => e.what,
+            Err(e) => format!("other: {e}"),
+            Ok(_) => "accepted".into(),
+        };
+        let e = message(LpmConfig {
+            memory_budget: Some(one - 1),
+            ..LpmConfig::default()
+        });
+        assert!(
+            e.contains("16x12x20") && e.contains("streaming = 1 slab"),
+            "{e}"
+        );
+        let e = message(LpmConfig {
+            memory_budget: Some(budget),
+            streaming: Streaming::Whole,
+            ..LpmConfig::default()
+        });
+        assert!(e.contains("without streaming"), "{e}");
+    }
+    match CpuLpm::<f64>::new(
+        &medium,
+        &LpmConfig {
+            streaming: Streaming::Slabs(0),
+            ..LpmConfig::default()
+        },
+    ) {
+        Err(SolverError::BadParameter { name, .. }) => assert_eq!(name, "streaming"),
+        other => panic!("S = 0: {:?}", other.map(|_| ())),
+    }
+    // The paper's formulas (§5, U = I = 6, p = 25, RGB) beside ours (f32, one channel,
+    // m = 5, D_I = 1, 3 orders kept) at 256³.
+    let g = Grid::cube(256, 1.0).unwrap();
+    let gb = |b: u64| b as f64 / 1e9;
+    eprintln!(
+        "T17 256³: paper {:.3} GB, without T {:.3} GB, streaming S = 16 {:.3} GB; ours (mono f32) unstreamed {:.3} GB, S = 16 {:.3} GB",
+        gb(paper_memory_bytes(256, 6, 6, 25, 3)),
+        gb(paper_memory_bytes(256, 6, 6, 25, 3) - 4 * 3 * 25 * 256u64.pow(3)),
+        gb(paper_streaming_memory_bytes(256, 6, 6, 25, 16, 3)),
+        gb(memory_bytes_sliced(&g, &LpmConfig::default(), 4, 256).total()),
+        gb(memory_bytes_sliced(&g, &LpmConfig::default(), 4, 16).total()),
+    );
+    assert_eq!(
+        paper_streaming_memory_bytes(256, 6, 6, 25, 16, 3) / 10_000_000,
+        57
     );
 }
 
