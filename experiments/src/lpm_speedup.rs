@@ -23,7 +23,11 @@
 //! sub-segments (default 10⁸: n ≤ 32), else one channel × 3 orders, else one channel × one
 //! order (n = 64 and 128 by default), so the full run fits a 90 s budget on two cores. The CSV
 //! records the work measured; the speed-up is the ratio of sub-segments per second (the
-//! same ratio as of seconds at equal work), against `alg1` at the same n.
+//! same ratio as of seconds at equal work), against `alg1` at the same n. Above
+//! `--alg1-full-max` (64) a whole sequential order is too slow for the budget (one 128³
+//! channel-order of Alg 1 took 105 s under load), so Alg 1's throughput there is sampled on
+//! 12 of the 150 directions (2 per face: the three sweep axes have different memory
+//! strides, so every face is in the sample).
 
 use crate::common::{CommonArgs, Ctx, list_item};
 use crate::experiment::{BackendSupport, Experiment, Promise};
@@ -52,8 +56,14 @@ pub struct Args {
     #[arg(long, default_value_t = 1e8)]
     pub segment_cap: f64,
     /// Largest n run on the GPU (default 64; 16 with --quick; 0: none). Lavapipe is slow.
+    /// Larger sizes are still built, so that a size the adapter refuses is recorded.
     #[arg(long)]
     pub gpu_max: Option<usize>,
+    /// Largest n at which Alg 1 runs whole orders (default 64); above it, its throughput is
+    /// sampled on two directions per LPM face (a corner and the centre cell), order 0, one
+    /// channel ([`solvers::lpm::Alg1Lpm::time_directions`]).
+    #[arg(long, default_value_t = 64)]
+    pub alg1_full_max: usize,
 }
 
 /// One timed (or refused, or not built) case (`speedup.csv`).
@@ -73,6 +83,8 @@ pub struct Row {
     pub channels: usize,
     /// Orders per channel timed.
     pub orders: usize,
+    /// Propagation directions timed per order (150 for m = 5; fewer for a sampled Alg 1).
+    pub directions: usize,
     /// Sub-segments processed (channels × orders × per order).
     pub sub_segments: u64,
     /// Seconds of the orders (best of the repeats; GPU: its own timer, see `timer`).
@@ -207,7 +219,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
         "channel_scale": CHANNEL_SCALE, "albedo": 0.9, "segment_cap": args.segment_cap,
         "gpu_max": gpu_max,
     }))?;
-    let gpu = if ns.iter().any(|&n| n <= gpu_max) {
+    let gpu = if gpu_max > 0 {
         match GpuContext::from_env() {
             Ok(g) => Some(g),
             Err(e) => {
@@ -251,6 +263,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
             status: status.into(),
             channels,
             orders,
+            directions: 150,
             sub_segments: segments,
             seconds,
             repeats: if seconds.is_some() { reps } else { 0 },
@@ -259,30 +272,58 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
             note,
         };
         // Alg 1, one thread (it has no parallel loop; the pool only pins the setup).
-        let alg1: Vec<Alg1Lpm<f32>> = media
-            .iter()
-            .map(|m| Alg1Lpm::new(&m.cast(), &run_cfg))
-            .collect::<Result<_, _>>()
-            .with_context(|| format!("Alg 1 at n = {n}"))?;
-        let s = one.install(|| {
-            best(reps, || {
-                let mut t = 0.0;
-                for a in &alg1 {
-                    t += a.solve(&bl, |_, _| {})?.seconds;
-                }
-                Ok(t)
-            })
-        })?;
-        drop(alg1);
-        ctx.timing(format!("n = {n}: alg1"), s);
-        rows.push(row(
-            "alg1",
-            1,
-            "cpu".into(),
-            "ok",
-            Some(s),
-            "wall clock, one thread".into(),
-        ));
+        if n <= args.alg1_full_max {
+            let alg1: Vec<Alg1Lpm<f32>> = media
+                .iter()
+                .map(|m| Alg1Lpm::new(&m.cast(), &run_cfg))
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("Alg 1 at n = {n}"))?;
+            let s = one.install(|| {
+                best(reps, || {
+                    let mut t = 0.0;
+                    for a in &alg1 {
+                        t += a.solve(&bl, |_, _| {})?.seconds;
+                    }
+                    Ok(t)
+                })
+            })?;
+            ctx.timing(format!("n = {n}: alg1"), s);
+            rows.push(row(
+                "alg1",
+                1,
+                "cpu".into(),
+                "ok",
+                Some(s),
+                "wall clock, one thread".into(),
+            ));
+        } else {
+            let a = Alg1Lpm::<f32>::new(&media[0].cast(), &run_cfg)
+                .with_context(|| format!("Alg 1 at n = {n}"))?;
+            let per_face = dirs.per_face();
+            let sample: Vec<usize> = (0..6)
+                .flat_map(|f| [f * per_face, f * per_face + per_face / 2])
+                .collect();
+            let (segs, s) = one.install(|| a.time_directions(&bl, &sample))?;
+            ctx.timing(format!("n = {n}: alg1 (sampled)"), s);
+            let mut r = row(
+                "alg1",
+                1,
+                "cpu".into(),
+                "ok",
+                Some(s),
+                format!(
+                    "wall clock, one thread; sampled: {} of 150 directions (2 per face), order 0, one channel",
+                    sample.len()
+                ),
+            );
+            r.channels = 1;
+            r.orders = 1;
+            r.directions = sample.len();
+            r.sub_segments = segs;
+            r.repeats = 1;
+            r.mseg_per_s = Some(segs as f64 / s / 1e6);
+            rows.push(r);
+        }
         let alg2: Vec<CpuLpm<f32>> = media
             .iter()
             .map(|m| CpuLpm::new(&m.cast(), &run_cfg))
@@ -310,26 +351,27 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
             ));
         }
         drop(alg2);
-        match (&gpu, n <= gpu_max) {
-            (_, false) => rows.push(row(
-                "gpu_slotted",
-                0,
-                gpu.as_ref().map_or("–".into(), |g| g.describe()),
-                "skipped",
-                None,
-                format!("n > --gpu-max {gpu_max} (lavapipe is a CPU rasteriser and slow)"),
-            )),
-            (None, true) => rows.push(row(
+        match &gpu {
+            None => rows.push(row(
                 "gpu_slotted",
                 0,
                 "–".into(),
-                "no adapter",
+                if n <= gpu_max {
+                    "no adapter"
+                } else {
+                    "skipped"
+                },
                 None,
-                "wgpu found no adapter".into(),
+                "wgpu found no adapter, or --gpu-max 0".into(),
             )),
-            (Some(g), true) => {
-                let built: Result<Vec<GpuLpm<'_>>, SolverError> =
-                    media.iter().map(|m| GpuLpm::new(g, m, &run_cfg)).collect();
+            Some(g) => {
+                // Built at every size: the limits are checked before any allocation, so a
+                // size the adapter refuses is recorded with its typed reason.
+                let built: Result<Vec<GpuLpm<'_>>, SolverError> = media
+                    .iter()
+                    .take(if n <= gpu_max { channels } else { 1 })
+                    .map(|m| GpuLpm::new(g, m, &run_cfg))
+                    .collect();
                 match built {
                     Err(e) if refusal(&e) => rows.push(row(
                         "gpu_slotted",
@@ -340,6 +382,14 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Row>> {
                         e.to_string(),
                     )),
                     Err(e) => return Err(e).with_context(|| format!("GPU LPM at n = {n}")),
+                    Ok(_) if n > gpu_max => rows.push(row(
+                        "gpu_slotted",
+                        0,
+                        g.describe(),
+                        "skipped",
+                        None,
+                        format!("n > --gpu-max {gpu_max} (lavapipe is a CPU rasteriser and slow)"),
+                    )),
                     Ok(mut solvers) => {
                         let s = best(reps, || {
                             let mut t = 0.0;
@@ -457,6 +507,7 @@ impl Experiment for LpmSpeedup {
                     "status",
                     "channels",
                     "orders",
+                    "directions",
                     "sub_segments",
                     "seconds",
                     "mseg_per_s",
@@ -496,7 +547,8 @@ impl Experiment for LpmSpeedup {
              Alg 1 is not Fattal's code, the CPU is a shared 2-core machine (timings under \
              load from other jobs), and the \"GPU\" is the adapter wgpu opened: {device}. \
              Where the full 3 channels × 3 orders exceed the sub-segment cap, fewer are timed \
-             (columns channels, orders); the speed-up is the ratio of sub-segments per \
+             (columns channels, orders), and above n = 64 Alg 1 is sampled on 12 of the 150 \
+             directions (2 per face, order 0); the speed-up is the ratio of sub-segments per \
              second at the same n. The paper's Fig 8 shows the GPU speed-up rising with n; \
              compare the trend, not the values. The atomic GPU variant is not built (no \
              float atomics in WGSL on this adapter).\n\n"
@@ -506,7 +558,7 @@ impl Experiment for LpmSpeedup {
                 "n",
                 "variant",
                 "status",
-                "work (ch × orders)",
+                "work (ch × orders × dirs)",
                 "seconds",
                 "Mseg/s",
                 "speed-up vs Alg 1",
@@ -524,7 +576,12 @@ impl Experiment for LpmSpeedup {
                     r.get("n").to_string(),
                     r.get("variant").to_string(),
                     r.get("status").to_string(),
-                    format!("{} × {}", r.get("channels"), r.get("orders")),
+                    format!(
+                        "{} × {} × {}",
+                        r.get("channels"),
+                        r.get("orders"),
+                        r.get("directions")
+                    ),
                     opt("seconds", 3),
                     opt("mseg_per_s", 1),
                     opt("speedup_vs_alg1", 2),

@@ -252,6 +252,52 @@ impl<T: Real> Alg1Lpm<T> {
         (injected, exited)
     }
 
+    /// Marches order 0 of only the directions `dirs` (indices into [`Self::dirs`]) into
+    /// scratch buffers and returns (sub-segments processed, seconds): a throughput sample for
+    /// grids where a whole sequential order takes too long (the Fig 8 experiment at 128³).
+    /// An index out of range is a typed error naming `dirs`.
+    pub fn time_directions(
+        &self,
+        boundary: &BoundaryLight,
+        dirs: &[usize],
+    ) -> Result<(u64, f64), SolverError> {
+        if boundary.radiance.len() != self.dirs.len() {
+            return Err(SolverError::FieldSize {
+                field: "boundary radiance",
+                expected: self.dirs.len(),
+                got: boundary.radiance.len(),
+            });
+        }
+        if let Some(&i) = dirs.iter().find(|&&i| i >= self.dirs.len()) {
+            return Err(SolverError::BadParameter {
+                name: "dirs",
+                value: i as f64,
+                reason: "a direction index beyond the direction set",
+            });
+        }
+        let nv = self.grid.len();
+        let mut u_cur: Vec<Vec<T>> = (0..CONES).map(|_| vec![T::zero(); nv]).collect();
+        let mut intensity: Vec<Vec<T>> = (0..self.config.storage_i.count())
+            .map(|_| vec![T::zero(); nv])
+            .collect();
+        let mut phi_p = vec![T::zero(); nv];
+        let n = self.grid.n;
+        let start = std::time::Instant::now();
+        let mut segments = 0u64;
+        for &i in dirs {
+            let d = &self.dirs.dirs[i];
+            let mut out = Out {
+                u_cur: &mut u_cur,
+                intensity: &mut intensity,
+                phi_p: &mut phi_p,
+            };
+            self.march(i, &self.source, boundary.radiance[i], 0, &mut out);
+            let (b, c) = lateral_axes(d.face / 2);
+            segments += (self.tables[i].segs.len() * n[b] * n[c]) as u64;
+        }
+        Ok((segments, start.elapsed().as_secs_f64()))
+    }
+
     /// Runs the scattering orders (Jacobi by order, as Alg 2, with D1, D2) with the boundary
     /// radiance `boundary`, sequentially. `observer(order, unshot / unshot after order 0)`
     /// sees every order.

@@ -247,3 +247,26 @@ fn t15_gpu_slotted_equals_alg1() {
         assert!(r < 1e-6 && w < 1e-5, "{what}: {w:e} / {r:e}");
     }
 }
+
+/// `time_directions` over every direction counts exactly the sub-segments of an order, none
+/// for no directions, and an index beyond the set is a typed error.
+#[test]
+fn time_directions_counts_one_order() {
+    let medium = random_medium([6, 5, 7], 5);
+    let cfg = LpmConfig {
+        m: 3,
+        orders: Orders::Fixed(1),
+        ..LpmConfig::default()
+    };
+    let a = Alg1Lpm::<f64>::new(&medium, &cfg).unwrap();
+    let b = lights(3);
+    let all: Vec<usize> = (0..a.dirs.len()).collect();
+    let (segs, secs) = a.time_directions(&b, &all).unwrap();
+    assert_eq!(segs, a.sub_segments_per_order());
+    assert!(secs.is_finite() && secs >= 0.0);
+    assert!(matches!(
+        a.time_directions(&b, &[a.dirs.len()]),
+        Err(crate::SolverError::BadParameter { name: "dirs", .. })
+    ));
+    assert_eq!(a.time_directions(&b, &[]).unwrap().0, 0);
+}
