@@ -314,6 +314,8 @@ pub static EXPERIMENTS: &[ExperimentEntry] = &[
     ExperimentEntry::of::<crate::lbm_diffusion_limit::LbmDiffusionLimit>(),
     ExperimentEntry::of::<crate::lpm_memory::LpmMemory>(),
     ExperimentEntry::of::<crate::lpm_accuracy::LpmAccuracy>(),
+    ExperimentEntry::of::<crate::lpm_speedup::LpmSpeedup>(),
+    ExperimentEntry::of::<crate::lpm_cloud::LpmCloud>(),
     ExperimentEntry::of::<crate::transport_references::TransportReferences>(),
     ExperimentEntry::of::<crate::pt_point_source::PtPointSource>(),
     ExperimentEntry::of::<crate::pt_slab::PtSlab>(),

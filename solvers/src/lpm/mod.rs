@@ -203,6 +203,7 @@
 //!   fraction of voxels below 0.1× the exact uncollided fluence falls from 0.97 (m = 3) to
 //!   0.85, 0.69–0.77, 0.58–0.68 (m = 5, 7, 9) and stays there at m = 11.
 
+pub mod alg1;
 pub mod cpu;
 pub mod directions;
 pub mod geometry;
@@ -213,6 +214,7 @@ pub mod method;
 #[cfg(test)]
 mod tests;
 
+pub use alg1::Alg1Lpm;
 pub use cpu::CpuLpm;
 pub use directions::{Directions, PhaseMatrix};
 pub use gpu::GpuLpm;

@@ -1,0 +1,2 @@
+//! Binary of [`experiments::lpm_cloud`].
+experiments::experiment_main!(experiments::lpm_cloud::LpmCloud);
