@@ -19,7 +19,27 @@
 //! A grid method's time is the wall clock of the whole render (light baking, diffusion
 //! solve, raymarch), on each selected backend.
 //!
-//! **Outputs** (`results/accuracy_cost/`): `points.csv`
+//! **Fixed step counts.** A method whose registry entry has fixed step counts
+//! (`Method::step_settings`: LPM, where one step is one scattering order, counts 1, 2, 3)
+//! also runs exactly that many steps at downsampling [`STEP_DOWNSAMPLE`] in f32 (setting
+//! `ds=2 steps=k f32`); `orders.csv` puts those points beside the same method converged at
+//! that downsampling (tolerance [`STEP_TOLERANCE`]) and every other grid method there
+//! ([`orders`]). Downsampling 2, not 4: a render's time on these datasets is mostly the
+//! single-scattering raymarch, which does not depend on it (LPM, 1 order, `nebula`: 6.8 s at
+//! ds 2, 6.5 s at ds 4; `plume`: 42 s and 47 s, under a load of 6 on 2 cores), and at ds 2
+//! the converged errors are 20–40 % lower.
+//!
+//! **Lights a method refuses.** A method that takes the lights itself refuses point and
+//! sphere lights; where the registry offers its baked form (`Method::with_baked_lights`:
+//! `lpm` → `lpm:baked`, spec D13's first-collision injection, which agrees with `lpm` to
+//! 2.6·10⁻³ on the multiple-scattering image, see `solvers::lpm::method`), the atlas renders
+//! that form on such a scene and records it under its own name, with `in place of lpm` in
+//! `detail`; only a method without one is skipped (`skipped.csv`). Of the four datasets only
+//! `plume` has a point light, so LPM has points on every dataset: `lpm` on three, `lpm:baked`
+//! on `plume`. Running `lpm:baked` everywhere would make the rows alike, but would replace
+//! the default's own boundary injection on the three scenes that it can render.
+//!
+//! **Outputs** (`results/accuracy_cost/`): `orders.csv` (the fixed-step table above), `points.csv`
 //! (`scene,method,setting,backend,seconds,error,error_stderr` and more; `paths_per_second`
 //! for the path-tracer points, wall-clock like `seconds`), a log–log Pareto
 //! plot per scene (`pareto_<scene>.png`), `fastest.csv` (per scene and error target 5 %,
@@ -120,8 +140,9 @@ pub struct Args {
     /// scene per value, named `<stem>_g<g>` (e.g. `shell_core_g0.9`); default: the scene's own.
     #[arg(long, value_delimiter = ',', value_parser = list_item::<f64>, allow_negative_numbers = true)]
     pub g: Option<Vec<f64>>,
-    /// The grid methods' settings, `DS:TOL:PRECISION` each (e.g. `2:1e-3:f32`), comma-separated;
-    /// default the ladder of `grid_settings` (quick: `4:1e-3:f32,2:1e-3:f32`).
+    /// The grid methods' settings, `DS:TOL:PRECISION` each (e.g. `2:1e-3:f32`; `TOL` may be
+    /// `steps=K`, exactly K steps), comma-separated; default the ladder of `grid_settings`
+    /// (quick: `4:1e-3:f32,2:1e-3:f32`) and each method's fixed step counts.
     #[arg(long, value_delimiter = ',', value_parser = parse_grid_setting)]
     pub grid: Option<Vec<Setting>>,
     /// Seed of the reference (the path tracer's points use seed + 1000).
@@ -183,6 +204,21 @@ pub struct Setting {
     pub precision: Precision,
     /// Samples per pixel (path tracer).
     pub spp: u32,
+    /// A fixed step count instead of the tolerance (`steps=K` in the label; a method's
+    /// [`solvers::method::StepSettings`], e.g. LPM's scattering orders).
+    pub steps: Option<usize>,
+}
+
+impl Setting {
+    /// The pipeline settings of `method` at this setting ([`grid_config`], with exactly
+    /// `steps` steps when the setting fixes them).
+    pub fn config(&self, method: &MethodRef) -> PipelineConfig {
+        let mut c = grid_config(method, self.downsample, self.tolerance);
+        if let Some(k) = self.steps {
+            c.tolerance = Tolerance::fixed_steps(k);
+        }
+        c
+    }
 }
 
 /// What one render of a method returns: the components per channel and its wall time.
@@ -231,12 +267,37 @@ impl From<Renderer> for MethodEntry {
 
 impl MethodEntry {
     /// Its settings (`quick` for CI-sized runs; `spp` is the path tracer's ladder; `grid`
-    /// replaces the grid methods' ladder).
+    /// replaces the grid methods' ladder, fixed step counts included). A grid method whose
+    /// registry entry has fixed step counts ([`solvers::method::Method::step_settings`]) runs
+    /// each of them at [`STEP_DOWNSAMPLE`] in f32 after the ladder.
     pub fn settings(&self, quick: bool, spp: &[u32], grid: Option<&[Setting]>) -> Vec<Setting> {
         match (&self.renderer, grid) {
             (Renderer::PathTracer, _) => pt_settings(quick, spp),
             (Renderer::Pipeline(_), Some(g)) => g.to_vec(),
-            (Renderer::Pipeline(_), None) => grid_settings(quick, spp),
+            (Renderer::Pipeline(m), None) => {
+                let mut v = grid_settings(quick, spp);
+                if let Some(st) = m.step_settings() {
+                    let d = step_downsample(quick);
+                    v.extend(
+                        st.counts
+                            .iter()
+                            .map(|&k| step_setting(d, k, Precision::F32)),
+                    );
+                }
+                v
+            }
+        }
+    }
+
+    /// The registry's form of this method that takes the pipeline's baked lights
+    /// ([`solvers::method::Method::with_baked_lights`]; LPM: `lpm:baked`), which the atlas
+    /// renders in its place on a scene whose lights it refuses.
+    pub fn baked_stand_in(&self) -> Option<MethodEntry> {
+        match &self.renderer {
+            Renderer::PathTracer => None,
+            Renderer::Pipeline(m) => m
+                .with_baked_lights()
+                .map(|b| MethodEntry::from(Renderer::Pipeline(MethodRef::new(b)))),
         }
     }
 
@@ -271,7 +332,7 @@ fn refusal(entry: &MethodEntry, scene: &Prepared, setting: &Setting) -> Option<S
     let Renderer::Pipeline(m) = &entry.renderer else {
         return None;
     };
-    let config = grid_config(m, setting.downsample, setting.tolerance);
+    let config = setting.config(m);
     match pipeline::plan_channels(&scene.channels, &scene.selection, &config) {
         Err(
             e @ (pipeline::PipelineError::MethodCannot { .. }
@@ -311,6 +372,7 @@ fn pt_settings(_quick: bool, spp: &[u32]) -> Vec<Setting> {
             tolerance: 0.0,
             precision: Precision::F64,
             spp: s,
+            steps: None,
         })
         .collect()
 }
@@ -354,11 +416,38 @@ fn grid_setting(downsample: usize, tolerance: f64, precision: Precision) -> Sett
         tolerance,
         precision,
         spp: 0,
+        steps: None,
     }
 }
 
+/// The downsampling of the fixed-step settings: 2 (quick: 4), where the full ladder has
+/// tolerance 10⁻³ in f32 too, the converged point they are compared with ([`orders`]).
+pub const STEP_DOWNSAMPLE: usize = 2;
+
+/// The tolerance of the converged point beside the fixed-step points (in both ladders).
+pub const STEP_TOLERANCE: f64 = 1e-3;
+
+fn step_downsample(quick: bool) -> usize {
+    if quick { 4 } else { STEP_DOWNSAMPLE }
+}
+
+/// Exactly `steps` steps at `downsample` (label `ds=2 steps=3 f32`).
+fn step_setting(downsample: usize, steps: usize, precision: Precision) -> Setting {
+    let mut s = grid_setting(downsample, 0.0, precision);
+    s.label = format!(
+        "ds={downsample} steps={steps} {}",
+        if precision == Precision::F32 {
+            "f32"
+        } else {
+            "f64"
+        }
+    );
+    s.steps = Some(steps);
+    s
+}
+
 /// Parses one `--grid` item, `DS:TOL:PRECISION` (downsampling ≥ 1, tolerance finite and
-/// ≥ 0, `f32` or `f64`).
+/// ≥ 0, `f32` or `f64`); `TOL` may be `steps=K` (exactly K ≥ 1 steps, e.g. `2:steps=3:f32`).
 pub fn parse_grid_setting(s: &str) -> std::result::Result<Setting, String> {
     let parts: Vec<&str> = s.trim().split(':').map(str::trim).collect();
     let [d, t, p] = parts.as_slice() else {
@@ -369,16 +458,24 @@ pub fn parse_grid_setting(s: &str) -> std::result::Result<Setting, String> {
         .ok()
         .filter(|&d| d >= 1)
         .ok_or_else(|| format!("`{s}`: the downsampling `{d}` must be an integer ≥ 1"))?;
-    let t: f64 = t
-        .parse()
-        .ok()
-        .filter(|t: &f64| t.is_finite() && *t >= 0.0)
-        .ok_or_else(|| format!("`{s}`: the tolerance `{t}` must be a number ≥ 0"))?;
     let p = match p.to_ascii_lowercase().as_str() {
         "f32" => Precision::F32,
         "f64" => Precision::F64,
         _ => return Err(format!("`{s}`: the precision `{p}` must be f32 or f64")),
     };
+    if let Some(k) = t.strip_prefix("steps=") {
+        let k: usize = k
+            .parse()
+            .ok()
+            .filter(|&k| k >= 1)
+            .ok_or_else(|| format!("`{s}`: the step count `{k}` must be an integer ≥ 1"))?;
+        return Ok(step_setting(d, k, p));
+    }
+    let t: f64 = t
+        .parse()
+        .ok()
+        .filter(|t: &f64| t.is_finite() && *t >= 0.0)
+        .ok_or_else(|| format!("`{s}`: the tolerance `{t}` must be a number ≥ 0"))?;
     Ok(grid_setting(d, t, p))
 }
 
@@ -550,7 +647,7 @@ pub fn grid_config(method: &MethodRef, downsample: usize, tolerance: f64) -> Pip
 }
 
 fn run_grid(job: &Job<'_>, method: &MethodRef) -> Result<Run> {
-    let config = grid_config(method, job.setting.downsample, job.setting.tolerance);
+    let config = job.setting.config(method);
     let t0 = Instant::now();
     let r = pipeline::render_channels(
         &job.scene.channels,
@@ -667,6 +764,105 @@ pub fn fastest(points: &[Point]) -> Vec<Fastest> {
     out
 }
 
+/// One row of `orders.csv`: a point of a method with fixed step counts (LPM: scattering
+/// orders) at one of them or converged, or another grid method at the converged setting.
+#[derive(Debug, Clone, Serialize)]
+pub struct OrderRow {
+    /// Scene.
+    pub scene: String,
+    /// The method as run (`lpm`; `lpm:baked` in its place on a scene with point lights).
+    pub method: String,
+    /// `fixed` (exactly `steps` steps), `converged` (the same method at tolerance
+    /// [`STEP_TOLERANCE`]) or `comparison` (another method at that setting).
+    pub kind: String,
+    /// Steps run: the fixed count, or per channel as the solve reported them.
+    pub steps: String,
+    /// The setting's label.
+    pub setting: String,
+    /// Backend.
+    pub backend: String,
+    /// Wall-clock seconds of the render.
+    pub seconds: f64,
+    /// Relative RMSE against the reference.
+    pub error: f64,
+    /// The same with the reference variance removed.
+    pub error_debiased: f64,
+    /// The reference's own noise.
+    pub error_stderr: f64,
+}
+
+/// The rows of `orders.csv`: for every method of `methods` with fixed step counts (as run,
+/// its baked stand-in included), its fixed-step points and its converged point at the same
+/// downsampling and precision (tolerance [`STEP_TOLERANCE`]), and every other grid method's
+/// point at that converged setting, per scene and backend.
+pub fn orders(methods: &[MethodEntry], points: &[Point], quick: bool) -> Vec<OrderRow> {
+    let mut names = Vec::new();
+    let mut labels = Vec::new();
+    for m in methods {
+        let Renderer::Pipeline(r) = &m.renderer else {
+            continue;
+        };
+        let Some(st) = r.step_settings() else {
+            continue;
+        };
+        names.push(m.name.clone());
+        names.extend(m.baked_stand_in().map(|t| t.name));
+        let d = step_downsample(quick);
+        labels.extend(
+            st.counts
+                .iter()
+                .map(|&k| (step_setting(d, k, Precision::F32).label, k)),
+        );
+    }
+    if names.is_empty() {
+        return Vec::new();
+    }
+    let converged = grid_setting(step_downsample(quick), STEP_TOLERANCE, Precision::F32).label;
+    let grid_names: Vec<String> = methods
+        .iter()
+        .filter(|m| matches!(m.renderer, Renderer::Pipeline(_)))
+        .map(|m| m.name.clone())
+        .collect();
+    let row = |p: &Point, kind: &str, steps: String| OrderRow {
+        scene: p.scene.clone(),
+        method: p.method.clone(),
+        kind: kind.into(),
+        steps,
+        setting: p.setting.clone(),
+        backend: p.backend.clone(),
+        seconds: p.seconds,
+        error: p.error,
+        error_debiased: p.error_debiased,
+        error_stderr: p.error_stderr,
+    };
+    let mut out = Vec::new();
+    for p in points {
+        let mine = names.contains(&p.method);
+        if let Some((_, k)) = labels.iter().find(|(l, _)| *l == p.setting) {
+            if mine {
+                out.push(row(p, "fixed", k.to_string()));
+            }
+        } else if p.setting == converged {
+            // Steps per channel (`37/41/43`; a stop other than `converged` is kept).
+            let steps = p
+                .detail
+                .strip_prefix("iterations=")
+                .and_then(|d| d.split(' ').next())
+                .unwrap_or_default()
+                .split('/')
+                .map(|c| c.strip_suffix(":converged").unwrap_or(c))
+                .collect::<Vec<_>>()
+                .join("/");
+            if mine {
+                out.push(row(p, "converged", steps));
+            } else if grid_names.contains(&p.method) {
+                out.push(row(p, "comparison", steps));
+            }
+        }
+    }
+    out
+}
+
 /// The points on the Pareto front (no other point both faster and more accurate), by time.
 pub fn pareto(points: &[&Point]) -> Vec<(f64, f64)> {
     let mut v: Vec<(f64, f64)> = points
@@ -685,6 +881,37 @@ pub fn pareto(points: &[&Point]) -> Vec<(f64, f64)> {
     }
     front
 }
+
+/// The methods of a run: `--methods`, or every method ([`methods`]).
+fn method_entries(args: &Args) -> Result<Vec<MethodEntry>> {
+    Ok(match &args.methods {
+        None => methods(),
+        Some(list) => crate::methods::parse_list(
+            &list
+                .split(',')
+                .map(|s| s.trim().to_string())
+                .collect::<Vec<_>>(),
+        )
+        .context("--methods")?
+        .into_iter()
+        .map(MethodEntry::from)
+        .collect(),
+    })
+}
+
+/// The columns of `orders.csv` (promised, and read back by the report).
+const ORDER_COLUMNS: &[&str] = &[
+    "scene",
+    "method",
+    "kind",
+    "steps",
+    "setting",
+    "backend",
+    "seconds",
+    "error",
+    "error_debiased",
+    "error_stderr",
+];
 
 /// Runs the atlas; returns its points.
 pub fn run(args: &Args) -> Result<Vec<Point>> {
@@ -714,19 +941,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         None if quick => Some([24, 24]),
         None => None,
     };
-    let methods: Vec<MethodEntry> = match &args.methods {
-        None => methods(),
-        Some(list) => crate::methods::parse_list(
-            &list
-                .split(',')
-                .map(|s| s.trim().to_string())
-                .collect::<Vec<_>>(),
-        )
-        .context("--methods")?
-        .into_iter()
-        .map(MethodEntry::from)
-        .collect(),
-    };
+    let methods = method_entries(args)?;
     let scenes = scene_files(args.scenes.as_deref(), DEFAULT_SCENES)?;
     let backends = args.backend.open()?;
     let params = serde_json::json!({
@@ -759,10 +974,9 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                     Renderer::PathTracer => {
                         crate::cost::pt_render(&scene.channels, &scene.effects, st.spp)
                     }
-                    Renderer::Pipeline(r) => crate::cost::pipeline_render(
-                        &scene.channels,
-                        &grid_config(r, st.downsample, st.tolerance),
-                    ),
+                    Renderer::Pipeline(r) => {
+                        crate::cost::pipeline_render(&scene.channels, &st.config(r))
+                    }
                 };
                 work.add(
                     format!("{}: {} [{}]", scene.name, m.name, st.label),
@@ -831,37 +1045,48 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                 bar.inc(1);
                 continue;
             }
-            if let Some(reason) = refusal(m, scene, s) {
-                eprintln!(
-                    "{} {} [{}] {b}: skipped: {reason}",
-                    scene.name, m.name, s.label
-                );
-                skipped.push(Skipped {
-                    scene: scene.name.clone(),
-                    method: m.name.clone(),
-                    setting: s.label.clone(),
-                    backend: b.to_string(),
-                    reason,
-                });
-                bar.inc(1);
-                continue;
-            }
+            // A method whose plan refuses the scene's lights runs as its baked form where the
+            // registry offers one (the point's `method` names what ran).
+            let (entry, in_place_of) = match refusal(m, scene, s) {
+                None => (std::borrow::Cow::Borrowed(*m), None),
+                Some(reason) => match m
+                    .baked_stand_in()
+                    .filter(|t| refusal(t, scene, s).is_none())
+                {
+                    Some(t) => (std::borrow::Cow::Owned(t), Some(m.name.clone())),
+                    None => {
+                        eprintln!(
+                            "{} {} [{}] {b}: skipped: {reason}",
+                            scene.name, m.name, s.label
+                        );
+                        skipped.push(Skipped {
+                            scene: scene.name.clone(),
+                            method: m.name.clone(),
+                            setting: s.label.clone(),
+                            backend: b.to_string(),
+                            reason,
+                        });
+                        bar.inc(1);
+                        continue;
+                    }
+                },
+            };
             let job = Job {
                 scene,
                 setting: s,
                 backend: b,
                 seed: args.seed + 1000,
             };
-            let Some(r) = m.run(&job, out)? else {
+            let Some(r) = entry.run(&job, out)? else {
                 bar.inc(1);
                 continue;
             };
             let (error, debiased, single, multiple) = errors(scene, &r.images);
             points.push(Point {
                 scene: scene.name.clone(),
-                method: m.name.clone(),
+                method: entry.name.clone(),
                 setting: s.label.clone(),
-                backend: match m.renderer {
+                backend: match entry.renderer {
                     Renderer::PathTracer => "cpu-f64".into(),
                     Renderer::Pipeline(_) => b.to_string(),
                 },
@@ -871,7 +1096,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                 error_debiased: debiased,
                 error_single: single,
                 error_multiple: multiple,
-                detail: r.detail,
+                detail: match &in_place_of {
+                    None => r.detail,
+                    Some(m) => format!("{} in place of {m}", r.detail),
+                },
                 g: scene
                     .channels
                     .first()
@@ -903,6 +1131,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     out.csv("references.csv", &refs)?;
     out.csv("skipped.csv", &skipped)?;
     out.csv("fastest.csv", &fastest(&points))?;
+    out.csv("orders.csv", &orders(&methods, &points, quick))?;
     Ok(points)
 }
 
@@ -952,6 +1181,92 @@ fn plot_scene(out: &Ctx, scene: &str, points: &[Point]) -> Result<()> {
         &Axis::log("wall time (s)"),
         &Axis::log("relative RMSE vs path-traced reference"),
         &series,
+    )
+}
+
+/// The section of `orders.csv`: per scene and backend, the fixed-step method's debiased error
+/// (and seconds) at each count and converged, beside every other grid method at the converged
+/// setting.
+fn orders_report(t: &crate::report::Table) -> String {
+    let mut counts: Vec<String> = t
+        .rows()
+        .filter(|r| r.get("kind") == "fixed")
+        .map(|r| r.get("steps").to_string())
+        .collect();
+    counts.sort_by_key(|c| c.parse::<usize>().unwrap_or(usize::MAX));
+    counts.dedup();
+    let mut others: Vec<String> = Vec::new();
+    for r in t.rows().filter(|r| r.get("kind") == "comparison") {
+        if !others.iter().any(|o| o == r.get("method")) {
+            others.push(r.get("method").to_string());
+        }
+    }
+    let cell = |r: Option<crate::report::Row<'_>>| match r {
+        Some(r) => format!(
+            "{} ({} s)",
+            r.fixed("error_debiased", 3),
+            r.fixed("seconds", 1)
+        ),
+        None => "–".into(),
+    };
+    let mut header: Vec<String> = vec!["scene".into(), "backend".into(), "LPM as run".into()];
+    header.extend(
+        counts
+            .iter()
+            .map(|k| format!("{k} order{}", if k == "1" { "" } else { "s" })),
+    );
+    header.push("converged".into());
+    header.extend(others.iter().cloned());
+    let mut rows = Vec::new();
+    let mut setting = String::new();
+    for sc in t.distinct("scene") {
+        for b in t.distinct("backend") {
+            let mine: Vec<_> = t
+                .rows()
+                .filter(|r| r.get("scene") == sc && r.get("backend") == b)
+                .collect();
+            let Some(first) = mine.iter().find(|r| r.get("kind") != "comparison") else {
+                continue;
+            };
+            let name = first.get("method").to_string();
+            let mut row = vec![sc.clone(), b.clone(), name.clone()];
+            for k in &counts {
+                row.push(cell(mine.iter().copied().find(|r| {
+                    r.get("kind") == "fixed" && r.get("steps") == k && r.get("method") == name
+                })));
+            }
+            let conv = mine
+                .iter()
+                .copied()
+                .find(|r| r.get("kind") == "converged" && r.get("method") == name);
+            if let Some(c) = &conv {
+                setting = c.get("setting").to_string();
+            }
+            row.push(match conv {
+                Some(c) => format!("{} [{}]", cell(Some(c)), c.get("steps")),
+                None => "–".into(),
+            });
+            for o in &others {
+                row.push(cell(
+                    mine.iter()
+                        .copied()
+                        .find(|r| r.get("kind") == "comparison" && r.get("method") == o),
+                ));
+            }
+            rows.push(row);
+        }
+    }
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    format!(
+        "### LPM by scattering order, beside the other methods (`orders.csv`)\n\n\
+         Debiased relative RMSE against the path-traced reference (wall seconds of the whole render). \
+         LPM runs exactly k orders at the downsampling of the converged column (`{setting}`, orders \
+         per channel in brackets), where every other method is shown too. `lpm` takes the lights as \
+         boundary radiance: k orders render scattering orders 1 … k (k = 1 is single scattering \
+         alone). On a scene with a point light (plume) `lpm` cannot take it, and the atlas runs \
+         `lpm:baked` (the registry's baked form, spec D13's first collision): its k orders render \
+         orders 1 … k + 1.\n\n{}\n",
+        table(&header, rows)
     )
 }
 
@@ -1059,6 +1374,14 @@ impl Experiment for AccuracyCost {
             ),
             Promise::csv("fastest.csv", FASTEST_COLUMNS),
         ];
+        // The fixed-step table, when the default ladder runs a method that has fixed steps.
+        let stepped = method_entries(args)
+            .unwrap_or_default()
+            .iter()
+            .any(|m| matches!(&m.renderer, Renderer::Pipeline(r) if r.step_settings().is_some()));
+        if stepped && args.grid.is_none() {
+            p.push(Promise::csv("orders.csv", ORDER_COLUMNS));
+        }
         // Plots are named after the scene, which the registered datasets name after their file.
         for path in scene_files(args.scenes.as_deref(), DEFAULT_SCENES).unwrap_or_default() {
             if let Some(stem) = path.file_stem() {
@@ -1157,6 +1480,13 @@ impl Experiment for AccuracyCost {
             rows,
         ));
         out.push('\n');
+        if s.path("orders.csv").is_file() {
+            let t = s.csv("orders.csv")?;
+            if !t.is_empty() {
+                t.require(ORDER_COLUMNS)?;
+                out.push_str(&orders_report(&t));
+            }
+        }
         if let Some(variants) = crate::report::anisotropy_variants(&points) {
             out.push_str(&variants);
             out.push('\n');

@@ -385,6 +385,20 @@ impl Capabilities {
     }
 }
 
+/// Fixed step counts of a method that are settings of their own: a method whose step has a
+/// meaning beyond "one more iteration toward convergence" says so here, and the accuracy
+/// atlas renders it at each count (run with [`Tolerance::fixed_steps`]) beside its tolerance
+/// ladder. LPM: one step is one scattering order (LPM §3.1, spec §1.7), and the paper renders
+/// with a fixed 3 (Alg 2). Iterative solvers (CDA, FLD, LBM, RDE) have none: a fixed count
+/// of their iterations is only a badly converged solve.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct StepSettings {
+    /// What one step is, plural, for table headers (`scattering orders`).
+    pub unit: &'static str,
+    /// The counts to show, strictly ascending, each ≥ 1.
+    pub counts: &'static [usize],
+}
+
 /// How a diffusion-type method (CDA, FLD, LBM) treats an anisotropic phase function
 /// (issue 12, item 2): `paper` (its paper's use) or `similarity` (a spec suffix, e.g.
 /// `fld:lp:similarity`, `lbm:similarity`).
@@ -480,6 +494,21 @@ pub trait Method: fmt::Debug + Send + Sync {
     /// How it uses σs under an anisotropic phase function, for methods that scatter
     /// isotropically and offer the choice ([`AnisotropyScaling`]); `None` for the others.
     fn anisotropy(&self) -> Option<AnisotropyScaling> {
+        None
+    }
+
+    /// Its fixed step counts worth a setting of their own ([`StepSettings`]); `None` (the
+    /// default) when a step is only an iteration toward convergence.
+    fn step_settings(&self) -> Option<StepSettings> {
+        None
+    }
+
+    /// The same method taking the pipeline's baked lights ([`LightInput::Baked`]) instead of
+    /// the scene's lights, for a [`LightInput::Direct`] method that has that form (LPM:
+    /// `lpm:baked`, spec D13's first-collision injection). A caller that must render a scene
+    /// whose lights the method refuses (point and sphere lights, [`direct_lights`]) uses it;
+    /// `None` (the default) when there is no such form.
+    fn with_baked_lights(&self) -> Option<Box<dyn Method>> {
         None
     }
 
@@ -722,6 +751,77 @@ mod tests {
         assert!(parse("fld:bogus").is_err());
         assert!(Params::parse(["omega"]).is_err());
         assert!(Params::parse(["omega=x"]).is_err());
+    }
+
+    /// A family's fixed step counts run exactly that many steps (the atlas labels a point by
+    /// its count), and a baked twin takes the lights its Direct original refuses.
+    #[test]
+    fn step_settings_run_exactly_their_counts_and_baked_twins_take_point_lights() {
+        let grid = Grid::cube(6, 1.0).unwrap();
+        let mut medium = Medium::homogeneous(grid, 3.0, 0.9).unwrap();
+        medium.emission[grid.index(3, 3, 3)] = 1.0;
+        let point = [Light::Point {
+            position: [0.5, 0.5, 1.5],
+            power: 1.0,
+        }];
+        let mut with_steps = 0;
+        for fam in METHODS {
+            let m = (fam.build)(None, &Params::none()).unwrap();
+            if let Some(st) = m.step_settings() {
+                with_steps += 1;
+                assert!(!st.unit.is_empty() && !st.counts.is_empty(), "{}", fam.name);
+                assert!(st.counts[0] >= 1, "{}", fam.name);
+                assert!(st.counts.windows(2).all(|w| w[0] < w[1]), "{}", fam.name);
+                for &k in st.counts {
+                    let p = Problem {
+                        medium: &medium,
+                        lights: &[],
+                        phase: Phase::Isotropic,
+                    };
+                    let s = m
+                        .solve(
+                            &Backend::Cpu(Precision::F64),
+                            &p,
+                            &Tolerance::fixed_steps(k),
+                            &mut |_, _| {},
+                        )
+                        .unwrap();
+                    assert_eq!((s.steps, s.stop), (k, Stop::Cap), "{} at {k}", fam.name);
+                }
+            }
+            let Some(twin) = m.with_baked_lights() else {
+                continue;
+            };
+            assert_eq!(m.capabilities().lights, LightInput::Direct, "{}", fam.name);
+            assert_eq!(
+                twin.capabilities().lights,
+                LightInput::Baked,
+                "{}",
+                fam.name
+            );
+            assert_eq!(parse(&twin.name()).unwrap().name(), twin.name());
+            let p = Problem {
+                medium: &medium,
+                lights: &point,
+                phase: Phase::Isotropic,
+            };
+            let run = |x: &dyn Method| {
+                x.solve(
+                    &Backend::Cpu(Precision::F64),
+                    &p,
+                    &Tolerance::rel(1e-3),
+                    &mut |_, _| {},
+                )
+            };
+            assert!(
+                matches!(run(m.as_ref()), Err(SolverError::LightKind { .. })),
+                "{}",
+                fam.name
+            );
+            assert!(run(twin.as_ref()).unwrap().phi.iter().any(|&v| v > 0.0));
+        }
+        // LPM's orders at least.
+        assert!(with_steps >= 1);
     }
 
     #[test]

@@ -41,7 +41,7 @@ use super::{
 use crate::gpu::Timer;
 use crate::method::{
     Balance, Capabilities, DirectLight, Fluence, LightInput, Method, MethodFamily, Problem,
-    Solution, Tolerance,
+    Solution, StepSettings, Tolerance,
 };
 use crate::{Backend, Grid, Medium, Precision, Real, SolverError};
 
@@ -261,6 +261,19 @@ impl Method for LpmMethod {
         &[&super::gpu::SPEC]
     }
 
+    fn step_settings(&self) -> Option<StepSettings> {
+        Some(ORDER_SETTINGS)
+    }
+
+    fn with_baked_lights(&self) -> Option<Box<dyn Method>> {
+        (self.lights == LightInput::Direct).then(|| {
+            Box::new(LpmMethod {
+                lights: LightInput::Baked,
+                ..self.clone()
+            }) as Box<dyn Method>
+        })
+    }
+
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {
         // Per order: each of the 6m² sweeps reads σt and U and reads and writes T once per
         // voxel (sub-segments of one voxel hit the same cache lines); each of the 6 collects
@@ -270,6 +283,18 @@ impl Method for LpmMethod {
         words * grid.len() * precision.bytes()
     }
 }
+
+/// LPM's fixed step counts ([`Method::step_settings`]): one step is one scattering order, and
+/// 1, 2 and 3 orders (the paper's count, Alg 2) are shown beside the converged solve. What k
+/// orders put in the image differs by one between the two ways in: `lpm` runs order 0 from
+/// the boundary light (the directional beam's own order 0 is subtracted and its single
+/// scattering is the pipeline's raymarch), so k orders render scattering orders 1 … k of
+/// the lights (k = 1: single scattering alone); `lpm:baked` starts from the once-scattered
+/// source q, so k orders render orders 1 … k + 1. Emission: orders 0 … k in both.
+pub const ORDER_SETTINGS: StepSettings = StepSettings {
+    unit: "scattering orders",
+    counts: &[1, 2, 3],
+};
 
 /// Light propagation maps (Fattal 2009, Gruson et al. 2012).
 pub const LPM: MethodFamily = MethodFamily {
