@@ -413,6 +413,8 @@ impl<T: Real> Alg1Lpm<T> {
             memory: Memory {
                 formula: alg1_memory_bytes(&self.grid, &self.config, word as u64),
                 resident_measured: (allocated * word + tables) as u64,
+                // No T buffer, nothing to slice: one slice of the whole grid.
+                slabs: self.grid.n.iter().copied().max().unwrap_or(1),
             },
         })
     }
