@@ -37,15 +37,36 @@ pub struct CpuLpm<T> {
 }
 
 /// (E, φ1, φ2) of optical depth τ: E = e^{−τ}, φ1 = (1 − E)/τ, φ2 = (τ − 1 + E)/τ² (spec
-/// §1.6); below `ts` the series (8 terms each, truncation < 10⁻¹⁶ at the thresholds used)
-/// with E = 1 − τφ1, so vacuum is exact (D29).
+/// §1.6); below `ts` the series (truncation < 10⁻¹⁶ at the thresholds used) with
+/// E = 1 − τφ1, so vacuum is exact (D29).
 ///
-/// Branch-free: both the series and the direct form are evaluated and one is selected, so a
-/// row of sub-segments vectorises. In f32 the direct form uses [`exp_neg_f32`] (no libm
-/// call); in f64 it keeps libm's `expm1`.
+/// In f32 the form is branch-free, so a row of sub-segments vectorises: the series and the
+/// direct form are both evaluated and one is selected. The series is φ2's alone (8 terms,
+/// Horner in [`fmadd`]), with φ1 = 1 − τφ2 and E = 1 − τφ1 (exact identities; below
+/// τ = 0.5 neither step cancels: τφ2 ≤ 0.22, τφ1 ≤ 0.40). The direct form takes E from
+/// [`exp_neg_f32`] (no libm call). In f64 the two series and libm's `expm1` as before.
 #[inline(always)]
 pub fn phis<T: Real>(tau: T, ts: T) -> (T, T, T) {
     let c = |x: f64| T::c(x);
+    if is_f32::<T>() {
+        let m = -tau;
+        let mut f2s = c(1.0 / 362880.0);
+        for k in [40320.0, 5040.0, 720.0, 120.0, 24.0, 6.0, 2.0] {
+            f2s = fmadd(m, f2s, c(1.0 / k));
+        }
+        let f1s = fmadd(m, f2s, T::one());
+        let es = fmadd(m, f1s, T::one());
+        // Direct form for τ ≥ ts = 0.5: 1 − E ≥ 0.39, so E itself (not expm1) loses nothing.
+        let e = T::c(exp_neg_f32(tau.f() as f32) as f64);
+        let inv = T::one() / tau;
+        let f1d = (T::one() - e) * inv;
+        let f2d = (tau - T::one() + e) * inv * inv;
+        let small = tau < ts;
+        let f1 = if small { f1s } else { f1d };
+        let f2 = if small { f2s } else { f2d };
+        let e = if small { es } else { e };
+        return (e, f1, f2);
+    }
     let f1s = T::one()
         - tau
             * (c(1.0 / 2.0)
@@ -74,18 +95,7 @@ pub fn phis<T: Real>(tau: T, ts: T) -> (T, T, T) {
                                                 - tau
                                                     * (c(1.0 / 40320.0)
                                                         - tau * c(1.0 / 362880.0)))))));
-    if is_f32::<T>() {
-        // Direct form for τ ≥ ts = 0.5: 1 − E ≥ 0.39, so E itself (not expm1) loses nothing.
-        let e = T::c(exp_neg_f32(tau.f() as f32) as f64);
-        let inv = T::one() / tau;
-        let f1d = (T::one() - e) * inv;
-        let f2d = (tau - T::one() + e) * inv * inv;
-        let small = tau < ts;
-        let f1 = if small { f1s } else { f1d };
-        let f2 = if small { f2s } else { f2d };
-        let e = if small { T::one() - tau * f1s } else { e };
-        (e, f1, f2)
-    } else if tau < ts {
+    if tau < ts {
         (T::one() - tau * f1s, f1s, f2s)
     } else {
         let em1 = (-tau).exp_m1();
@@ -99,26 +109,38 @@ fn is_f32<T: Real>() -> bool {
     T::epsilon().f() > 1e-10
 }
 
+/// Whether [`fmadd`] fuses: where the target has a fused multiply-add instruction (x86-64
+/// with FMA, e.g. this workspace's x86-64-v3 build; every aarch64). Elsewhere `mul_add`
+/// would be a scalar libm call per operation, so it is not used there.
+pub const FUSED: bool = cfg!(any(target_feature = "fma", target_arch = "aarch64"));
+
+/// a·b + c of the f32 kernel ([`phis`], [`exp_neg_f32`], [`segment`]): one rounding (fused,
+/// `mul_add`) where [`FUSED`], else a·b then + c. The fused form halves the kernel's
+/// dependent chains (the Horner polynomials); a build without FMA (e.g.
+/// `RUSTFLAGS="-C target-cpu=x86-64"`) gives results that differ by rounding.
+#[inline(always)]
+pub fn fmadd<T: Real>(a: T, b: T, c: T) -> T {
+    if FUSED { a.mul_add(b, c) } else { a * b + c }
+}
+
 /// e^{−τ} in f32 for τ ≥ 0 without a libm call, so that LLVM vectorises it: τ is clamped to
 /// 80 (e^{−80} = 1.8·10⁻³⁵, still normal), x = −τ = k ln 2 + r with k by the 1.5·2²³
 /// rounding trick and a two-constant Cody–Waite ln 2, e^r (|r| ≤ ln2/2) by its Taylor
-/// polynomial to r⁷ (truncation 0.347⁸/8! = 5·10⁻⁹ relative), times 2^k built from its bits.
-/// Within 1.15 ulp of the exact value (measured against f64 over τ ∈ [0, 80], bound 2, in
-/// `exp_neg_f32_matches_f64`).
+/// polynomial to r⁷ (truncation 0.347⁸/8! = 5·10⁻⁹ relative, Horner in [`fmadd`]), times
+/// 2^k built from its bits. Within 0.86 ulp of the exact value with FMA (1.15 ulp unfused;
+/// measured against f64 over τ ∈ [0, 80], bound 2, in `exp_neg_f32_matches_f64`).
 #[inline(always)]
 pub fn exp_neg_f32(tau: f32) -> f32 {
     const MAGIC: f32 = 12_582_912.0; // 1.5·2²³
     let x = -tau.min(80.0);
-    let t = x * std::f32::consts::LOG2_E + MAGIC;
+    let t = fmadd(x, std::f32::consts::LOG2_E, MAGIC);
     let k = t - MAGIC;
     let ki = (t.to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
-    let r = (x - k * 0.693_359_4) + k * 2.121_944_4e-4;
-    let p = 1.0
-        + r * (1.0
-            + r * (0.5
-                + r * (1.0 / 6.0
-                    + r * (1.0 / 24.0
-                        + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))));
+    let r = fmadd(k, 2.121_944_4e-4, fmadd(k, -0.693_359_4, x));
+    let mut p = 1.0 / 5040.0;
+    for a in [720.0, 120.0, 24.0, 6.0, 2.0, 1.0, 1.0] {
+        p = fmadd(p, r, 1.0 / a);
+    }
     p * f32::from_bits(((ki + 127) as u32) << 23)
 }
 
@@ -134,17 +156,90 @@ pub fn series_threshold<T: Real>() -> T {
 #[inline(always)]
 pub fn segment<T: Real>(l_in: T, u: T, st: T, s: T, ts: T) -> (T, T) {
     let (e, f1, f2) = phis(st * s, ts);
-    (l_in * e + u * s * f1, s * (l_in * f1 + u * s * f2))
+    let us = u * s;
+    if is_f32::<T>() {
+        (fmadd(l_in, e, us * f1), s * fmadd(l_in, f1, us * f2))
+    } else {
+        (l_in * e + us * f1, s * (l_in * f1 + us * f2))
+    }
 }
 
 /// [`segment`] over one row of rays: `rays` (in and out), their voxels' unshot source `u`
 /// and extinction `st`, and their T, all with one sub-segment length `s`.
+///
+/// In f32 the row runs in blocks of [`LANES`] and the last partial block is padded (σt = 0,
+/// so τ = 0) and run as a full one, so every sub-segment goes through the vector code: a
+/// plain loop left up to 7 rays of each run (a row is split in two runs at the wrap) to a
+/// scalar epilogue, 34 % of the sweep's samples at 64³. With the fused kernel the blocks
+/// save 12 % of a 64³ RGB solve (2.87 → 2.51 CPU-s, 1 thread, A/B). Each ray's arithmetic
+/// is unchanged (bit-identical). f64 keeps the plain
+/// loop (its libm `expm1` does not vectorise).
+// The padding copies are element loops on purpose (see the comment there).
+#[allow(clippy::manual_memcpy)]
 #[inline(always)]
 fn transport_row<T: Real>(rays: &mut [T], u: &[T], st: &[T], g: &mut [T], s: T, ts: T) {
-    for (((l, &u), &st), g) in rays.iter_mut().zip(u).zip(st).zip(g) {
-        let (l_out, int) = segment(*l, u, st, s, ts);
-        *g = *g + int;
-        *l = l_out;
+    let n = rays.len();
+    let (u, st, g) = (&u[..n], &st[..n], &mut g[..n]);
+    if !is_f32::<T>() {
+        for (((l, &u), &st), g) in rays.iter_mut().zip(u).zip(st).zip(g) {
+            let (l_out, int) = segment(*l, u, st, s, ts);
+            *g = *g + int;
+            *l = l_out;
+        }
+        return;
+    }
+    let full = n - n % LANES;
+    let (rays_b, rays_r) = rays.split_at_mut(full);
+    let (u_b, u_r) = u.split_at(full);
+    let (st_b, st_r) = st.split_at(full);
+    let (g_b, g_r) = g.split_at_mut(full);
+    for (((l, u), st), g) in rays_b
+        .chunks_exact_mut(LANES)
+        .zip(u_b.chunks_exact(LANES))
+        .zip(st_b.chunks_exact(LANES))
+        .zip(g_b.chunks_exact_mut(LANES))
+    {
+        transport_block(l, u, st, g, s, ts);
+    }
+    let r = rays_r.len();
+    if r > 0 {
+        let mut l = [T::zero(); LANES];
+        let mut uu = [T::zero(); LANES];
+        let mut ss = [T::zero(); LANES];
+        let mut gg = [T::zero(); LANES];
+        // Element loops, not `copy_from_slice`: a memcpy call per ≤ 7 words cost 4 % of
+        // the solve.
+        for j in 0..r {
+            l[j] = rays_r[j];
+            uu[j] = u_r[j];
+            ss[j] = st_r[j];
+            gg[j] = g_r[j];
+        }
+        transport_block(&mut l, &uu, &ss, &mut gg, s, ts);
+        for j in 0..r {
+            rays_r[j] = l[j];
+            g_r[j] = gg[j];
+        }
+    }
+}
+
+/// Rays per block of [`transport_row`]: one AVX2 register of f32.
+const LANES: usize = 8;
+
+/// [`segment`] over exactly [`LANES`] rays (a fixed trip count, so LLVM emits one straight
+/// vector body with no epilogue).
+#[inline(always)]
+fn transport_block<T: Real>(rays: &mut [T], u: &[T], st: &[T], g: &mut [T], s: T, ts: T) {
+    let (rays, u, st, g) = (
+        &mut rays[..LANES],
+        &u[..LANES],
+        &st[..LANES],
+        &mut g[..LANES],
+    );
+    for j in 0..LANES {
+        let (l_out, int) = segment(rays[j], u[j], st[j], s, ts);
+        g[j] = g[j] + int;
+        rays[j] = l_out;
     }
 }
 
@@ -592,57 +687,124 @@ impl<T: Real> CpuLpm<T> {
         for (ci, c) in phi_p.chunks_mut(chunk).enumerate() {
             slices[ci].push(c);
         }
-        let sixth = T::c(1.0 / 6.0);
         let parts: Vec<(f64, f64)> = slices
             .into_par_iter()
             .enumerate()
             .map(|(ci, mut sl)| {
-                let (mut dep, mut abs) = (0.0, 0.0);
-                // Direction-outer over the slice, per voxel still summed k = 0, 1, … (the
-                // old voxel-outer order, so bit-identical): each T row is read once as a
-                // contiguous stream and every loop vectorises.
-                let range = ci * chunk..(ci + 1) * chunk;
-                let mut acc: Vec<Vec<T>> = (0..CONES).map(|_| vec![T::zero(); chunk]).collect();
-                let mut fls = vec![T::zero(); chunk];
-                for k in 0..per {
-                    let gk = &gbuf[k][range.clone()];
-                    let src = if paper { &pbuf[k][range.clone()] } else { gk };
-                    let w = wphi[k];
-                    for (f, &g) in fls.iter_mut().zip(gk) {
-                        *f = *f + w * g;
-                    }
-                    for (a, &w) in acc.iter_mut().zip(&wu[k]) {
-                        for (a, &x) in a.iter_mut().zip(src) {
-                            *a = *a + w * x;
-                        }
-                    }
+                // Voxel blocks of COLLECT_BLOCK, direction-outer inside a block: the seven
+                // sums (six cones and φ) of a block stay in registers while the m² T rows
+                // stream past, and per voxel the directions are still summed k = 0, 1, …
+                // (bit-identical to the voxel-outer order of the first version).
+                let mut sums = (0.0, 0.0);
+                let base = ci * chunk;
+                let full = chunk - chunk % COLLECT_BLOCK;
+                let ctx = BlockCtx {
+                    gbuf,
+                    pbuf: paper.then_some(pbuf),
+                    wu: &wu,
+                    wphi: &wphi,
+                    sigma_t: &self.sigma_t,
+                    sigma_s: &self.sigma_s,
+                    d_i,
+                };
+                for j0 in (0..full).step_by(COLLECT_BLOCK) {
+                    collect_block(&ctx, base, j0, COLLECT_BLOCK, &mut sl, &mut sums);
                 }
-                for j in 0..chunk {
-                    let v = ci * chunk + j;
-                    let fl = fls[j];
-                    let ss = self.sigma_s[v];
-                    let mut total = T::zero();
-                    for d in 0..CONES {
-                        let du = if paper { acc[d][j] } else { ss * acc[d][j] };
-                        sl[d][j] = sl[d][j] + du;
-                        if d_i == CONES {
-                            sl[CONES + d][j] = sl[CONES + d][j] + du;
-                        }
-                        total = total + du;
-                    }
-                    if d_i == 1 {
-                        sl[CONES][j] = sl[CONES][j] + total * sixth;
-                    }
-                    sl[CONES + d_i][j] = sl[CONES + d_i][j] + fl;
-                    dep += total.f() * CONE_SOLID_ANGLE;
-                    abs += (self.sigma_t[v] - ss).f() * fl.f();
+                if full < chunk {
+                    collect_block(&ctx, base, full, chunk - full, &mut sl, &mut sums);
                 }
-                (dep, abs)
+                sums
             })
             .collect();
         parts
             .iter()
             .fold((0.0, 0.0), |acc, p| (acc.0 + p.0, acc.1 + p.1))
+    }
+}
+
+/// Voxels per block of the collect: its seven f32 sums take 14 KiB, in L1 (the first
+/// version's whole-slice sums, 112 KiB at 64², were not: 0.51 → 0.42 CPU-s of the collect
+/// per 64³ RGB solve in the profile). A register block of 8 voxels, reading the 25 T rows
+/// 1 MiB apart and so in one L1 set, thrashed and was 2× slower; 256–2048 measured alike.
+const COLLECT_BLOCK: usize = 512;
+
+/// What [`collect_block`] reads: the face's T rows (and the paper's deposit), the weights
+/// A·F/(h³|Ω^{d′}|) per direction and cone and A|Ω^i|/h³ per direction, the medium, D_I.
+struct BlockCtx<'a, T> {
+    gbuf: &'a [Vec<T>],
+    pbuf: Option<&'a [Vec<T>]>,
+    wu: &'a [[T; CONES]],
+    wphi: &'a [T],
+    sigma_t: &'a [T],
+    sigma_s: &'a [T],
+    d_i: usize,
+}
+
+/// The collect of the `w` ≤ [`COLLECT_BLOCK`] voxels from `base + j0` (slice offset `j0` in
+/// `out`: the six U^{cur} cones, the D_I buffers of I, then φ^p), adding Σ_d′ ΔU^{d′}|Ω^{d′}|
+/// and σa Δφ to `sums` in voxel order. Called with the constant `w` = [`COLLECT_BLOCK`] for
+/// every full block (fixed trip counts); the sums are fixed-length arrays on the stack.
+#[inline(always)]
+fn collect_block<T: Real>(
+    ctx: &BlockCtx<'_, T>,
+    base: usize,
+    j0: usize,
+    w: usize,
+    out: &mut [&mut [T]],
+    sums: &mut (f64, f64),
+) {
+    let r = base + j0..base + j0 + w;
+    let mut acc = [[T::zero(); COLLECT_BLOCK]; CONES];
+    let mut fls = [T::zero(); COLLECT_BLOCK];
+    for (k, g) in ctx.gbuf.iter().enumerate() {
+        let gk = &g[r.clone()];
+        let src = match ctx.pbuf {
+            Some(p) => &p[k][r.clone()],
+            None => gk,
+        };
+        let wk = ctx.wphi[k];
+        for (f, &g) in fls[..w].iter_mut().zip(gk) {
+            *f = *f + wk * g;
+        }
+        for (a, &wd) in acc.iter_mut().zip(&ctx.wu[k]) {
+            for (a, &x) in a[..w].iter_mut().zip(src) {
+                *a = *a + wd * x;
+            }
+        }
+    }
+    let ss = &ctx.sigma_s[r.clone()];
+    let st = &ctx.sigma_t[r];
+    let mut total = [T::zero(); COLLECT_BLOCK];
+    for a in acc.iter_mut() {
+        for ((a, t), &ss) in a[..w].iter_mut().zip(&mut total[..w]).zip(ss) {
+            let du = if ctx.pbuf.is_some() { *a } else { ss * *a };
+            *a = du;
+            *t = *t + du;
+        }
+    }
+    let d_i = ctx.d_i;
+    for (d, a) in acc.iter().enumerate() {
+        for (o, &du) in out[d][j0..j0 + w].iter_mut().zip(&a[..w]) {
+            *o = *o + du;
+        }
+        if d_i == CONES {
+            for (o, &du) in out[CONES + d][j0..j0 + w].iter_mut().zip(&a[..w]) {
+                *o = *o + du;
+            }
+        }
+    }
+    if d_i == 1 {
+        let sixth = T::c(1.0 / 6.0);
+        for (o, &t) in out[CONES][j0..j0 + w].iter_mut().zip(&total[..w]) {
+            *o = *o + t * sixth;
+        }
+    }
+    for (o, &f) in out[CONES + d_i][j0..j0 + w].iter_mut().zip(&fls[..w]) {
+        *o = *o + f;
+    }
+    for j in 0..w {
+        sums.0 += total[j].f() * CONE_SOLID_ANGLE;
+        sums.1 += (st[j] - ss[j]).f() * fls[j].f();
     }
 }
 
@@ -661,17 +823,30 @@ pub fn to_x_layout<T: Copy>(grid: &Grid, field: &[T]) -> Vec<T> {
     out
 }
 
-/// The inverse of [`to_x_layout`], into `out`.
+/// The inverse of [`to_x_layout`], into `out`: per z a transpose of the n_x × n_y plane in
+/// tiles of [`TILE`]², contiguous reads and writes of stride n_x (the plain triple loop,
+/// with a bounds check per word, was 12 % of a 64³ solve's profile, the tiles 6 %).
 pub fn from_x_layout<T: Copy>(grid: &Grid, local: &[T], out: &mut [T]) {
     let [nx, ny, nz] = grid.n;
-    for x in 0..nx {
-        for z in 0..nz {
-            for y in 0..ny {
-                out[x + nx * (y + ny * z)] = local[y + ny * (z + nz * x)];
+    let sx = ny * nz; // local stride of x
+    for z in 0..nz {
+        for x0 in (0..nx).step_by(TILE) {
+            for y0 in (0..ny).step_by(TILE) {
+                let by = TILE.min(ny - y0);
+                for x in x0..(x0 + TILE).min(nx) {
+                    let src = &local[y0 + ny * z + sx * x..][..by];
+                    let dst = out[x + nx * (y0 + ny * z)..].iter_mut().step_by(nx);
+                    for (o, &v) in dst.zip(src) {
+                        *o = v;
+                    }
+                }
             }
         }
     }
 }
+
+/// Edge of the tiles of [`from_x_layout`].
+const TILE: usize = 16;
 
 impl StorageI {
     /// The number of I buffers: 1 or 6.
@@ -685,7 +860,36 @@ impl StorageI {
 
 #[cfg(test)]
 mod fast_exp_tests {
-    use super::{exp_neg_f32, phis, series_threshold};
+    use super::{exp_neg_f32, from_x_layout, phis, series_threshold, to_x_layout};
+    use crate::Grid;
+
+    /// The tiled transpose back from the x-faces' layout inverts [`to_x_layout`] exactly on
+    /// grids whose sides are below, at and above multiples of the tile edge (16).
+    #[test]
+    fn x_layout_round_trip() {
+        for n in [
+            [3, 3, 3],
+            [3, 17, 5],
+            [16, 16, 16],
+            [33, 7, 18],
+            [20, 40, 3],
+        ] {
+            let grid = Grid::new(n, 0.1).expect("grid");
+            let field: Vec<u32> = (0..grid.len() as u32).collect();
+            let local = to_x_layout(&grid, &field);
+            let [nx, ny, nz] = n;
+            for (x, y, z) in [
+                (0, 0, 0),
+                (nx - 1, ny - 1, nz - 1),
+                (nx / 2, ny - 1, nz / 3),
+            ] {
+                assert_eq!(local[y + ny * (z + nz * x)], field[x + nx * (y + ny * z)]);
+            }
+            let mut back = vec![u32::MAX; grid.len()];
+            from_x_layout(&grid, &local, &mut back);
+            assert_eq!(back, field, "{n:?}");
+        }
+    }
 
     /// Units in the last place of `want` (f32) between `got` and the f64 value `want`.
     fn ulps(got: f32, want: f64) -> f64 {
