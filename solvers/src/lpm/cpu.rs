@@ -900,6 +900,7 @@ mod fast_exp_tests {
 
     /// The f32 e^{−τ} of the vectorised sweep is within 2 ulp of the exact value on τ ∈
     /// [0, 80] (dense: 2·10⁵ points, linear and logarithmic), and tiny and finite beyond.
+    /// Measured 0.86 ulp fused, 1.15 unfused.
     #[test]
     fn exp_neg_f32_matches_f64() {
         let mut worst: f64 = 0.0;
@@ -920,9 +921,10 @@ mod fast_exp_tests {
     }
 
     /// The branch-free f32 (E, φ1, φ2) agrees with the f64 libm form for τ from 10⁻⁸ to 10³,
-    /// across the series/direct switch at 0.5. Measured: E 6.3·10⁻⁸ absolute, φ1 1.6·10⁻⁷
-    /// and φ2 3.7·10⁻⁷ relative (φ2's direct form cancels just above the switch:
-    /// τ − 1 + E = 0.107 at τ = 0.5); bounds 3·10⁻⁷, 3·10⁻⁷, 10⁻⁶.
+    /// across the series/direct switch at 0.5. Measured (fused kernel): E 4.7·10⁻⁸
+    /// absolute, φ1 1.6·10⁻⁷ and φ2 3.4·10⁻⁷ relative (unfused: 6.3·10⁻⁸, 1.6·10⁻⁷,
+    /// 3.7·10⁻⁷; φ2's direct form cancels just above the switch: τ − 1 + E = 0.107 at
+    /// τ = 0.5); bounds 3·10⁻⁷, 3·10⁻⁷, 10⁻⁶.
     #[test]
     fn phis_f32_matches_f64() {
         let (mut we, mut w1, mut w2) = (0.0f64, 0.0f64, 0.0f64);
