@@ -13,7 +13,10 @@
 //!   [`SUMMARY_RUNS`]), measured sub-segments per second per channel
 //!   ([`CpuLpm::sub_segments_per_order`]), the effective bytes/s (`LpmMethod::bytes_per_step`
 //!   per order) and its ratio to the STREAM triad over the same footprint, best of probes
-//!   before and after; printed and written to `results/bench/lpm.csv`.
+//!   before and after; printed and written to `results/bench/lpm.csv`. Beside the wall time
+//!   the mean CPU seconds per RGB solve over the summary runs (all threads, Linux:
+//!   `/proc/self/task/*/schedstat`; empty elsewhere): on a shared machine wall time
+//!   includes other processes' time slices, CPU seconds do not.
 //!
 //! * Criterion group `lpm_rgb/gpu` (when an adapter exists): the same three channel solves
 //!   with [`GpuLpm`] (buffers and tables built once per channel outside; one iteration
@@ -64,6 +67,7 @@ struct Row {
     precision: &'static str,
     setup_seconds: f64,
     seconds: f64,
+    cpu_seconds: Option<f64>,
     segments: u64,
     bytes: usize,
     triad_gbs: f64,
@@ -114,11 +118,17 @@ fn bench_cpu<T: Real>(c: &mut Criterion, sizes: &[usize], summary: bool, rows: &
             let footprint = solvers[0].memory_estimate() as usize;
             let probe = || triad_gbs(len_for_total_bytes(footprint, 3), PROBE_REPS);
             let p0 = probe();
+            let c0 = cpu_seconds();
             let seconds = median_seconds(SUMMARY_RUNS, rgb);
+            let cpu = match (c0, cpu_seconds()) {
+                (Some(a), Some(b)) => Some((b - a) / SUMMARY_RUNS as f64),
+                _ => None,
+            };
             let p1 = probe();
             let segments = solvers[0].sub_segments_per_order() * orders as u64;
+            let cpu_text = cpu.map_or("n/a".to_string(), |c| format!("{c:.3}"));
             println!(
-                "summary: cpu {n}³ {} RGB, 3 orders: {seconds:.3} s (setup {setup_seconds:.3} s), {:.1} Mseg/s per channel, triad {p0:.2}/{p1:.2} GB/s",
+                "summary: cpu {n}³ {} RGB, 3 orders: {seconds:.3} s, {cpu_text} CPU-s (setup {setup_seconds:.3} s), {:.1} Mseg/s per channel, triad {p0:.2}/{p1:.2} GB/s",
                 T::NAME,
                 3.0 * segments as f64 / seconds / 1e6
             );
@@ -127,6 +137,7 @@ fn bench_cpu<T: Real>(c: &mut Criterion, sizes: &[usize], summary: bool, rows: &
                 precision: T::NAME,
                 setup_seconds,
                 seconds,
+                cpu_seconds: cpu,
                 segments,
                 bytes,
                 triad_gbs: p0.max(p1),
@@ -194,6 +205,19 @@ fn bench_gpu(c: &mut Criterion, sizes: &[usize], summary: bool) {
     group.finish();
 }
 
+/// CPU seconds the threads of this process have run so far: Σ over /proc/self/task of the
+/// first field of `schedstat` (nanoseconds on the CPU); `None` where that is not readable
+/// (not Linux). Rayon's workers live as long as the process, so a difference of two calls
+/// counts the work in between.
+fn cpu_seconds() -> Option<f64> {
+    let mut ns: u64 = 0;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let text = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+        ns += text.split_whitespace().next()?.parse::<u64>().ok()?;
+    }
+    Some(ns as f64 * 1e-9)
+}
+
 fn main() {
     let bench = benches::cli::benchmark_mode();
     let sizes = benches::cli::sizes(SIZES_ENV, bench, &DEFAULT_SIZES, &TEST_SIZES)
@@ -210,18 +234,19 @@ fn main() {
     if !bench || rows.is_empty() {
         return;
     }
-    let header = "n,precision,threads,cpu,orders,m,setup_s,rgb_solve_s,subsegments_per_order_channel,mseg_per_s,effective_gbs,triad_gbs,ratio_triad";
+    let header = "n,precision,threads,cpu,orders,m,setup_s,rgb_solve_s,rgb_solve_cpu_s,subsegments_per_order_channel,mseg_per_s,effective_gbs,triad_gbs,ratio_triad";
     let mut lines = Vec::new();
     for r in &rows {
         let gbs = r.bytes as f64 / r.seconds / 1e9;
         let line = format!(
-            "{},{},{},{},3,5,{:.4},{:.4},{},{:.2},{:.3},{:.3},{:.4}",
+            "{},{},{},{},3,5,{:.4},{:.4},{},{},{:.2},{:.3},{:.3},{:.4}",
             r.n,
             r.precision,
             rayon::current_num_threads(),
             benches::cli::cpu_model(),
             r.setup_seconds,
             r.seconds,
+            r.cpu_seconds.map_or(String::new(), |c| format!("{c:.4}")),
             r.segments / 3, // per order (3 orders), per channel
             3.0 * r.segments as f64 / r.seconds / 1e6,
             gbs,

@@ -29,7 +29,7 @@
 //! * [`cpu::CpuLpm`]: rayon sweeps (one task per direction of the LPM, each owning its T)
 //!   and a per-voxel collect in a fixed order; generic over `f32`/`f64`.
 //! * [`gpu::GpuLpm`]: the wgpu kernels (f32, `lpm.wgsl`): class-slotted T, no atomics,
-//!   the same numbers as `CpuLpm<f32>` to 3·10⁻⁷ (section *GPU* below).
+//!   the same numbers as `CpuLpm<f32>` to 9.2·10⁻⁷ (section *GPU* below).
 //! * [`method::LpmMethod`]: the registered method `lpm[:baked|:paper]` (CPU f32/f64; GPU
 //!   except `lpm:paper`, whose deposit has no kernel).
 //! * [`Formulas`]: the exact form (default) and the paper's literal formulas
@@ -45,8 +45,9 @@
 //! ## GPU (`gpu.rs`, `lpm.wgsl`; issue 16 build item 3, D17)
 //! * **Kernels.** Per order and face: `sweep`, one thread per (direction k of the face, ray
 //!   r), marches its ray through every slab with the CPU's tables (uploaded once; lengths
-//!   pre-scaled by h and the path factor as the CPU scales them) and the same f32 arithmetic
-//!   ([`cpu::phis`], the same e^{−τ} polynomial with k = round(x log₂e)); then `collect`, one
+//!   pre-scaled by h and the path factor as the CPU scales them) and the CPU's f32 formulas
+//!   ([`cpu::phis`], the same e^{−τ} polynomial with k = round(x log₂e); unfused, where the
+//!   CPU fuses its multiply-adds, [`cpu::fmadd`]); then `collect`, one
 //!   thread per voxel, sums the face's directions in the CPU's order into U^{cur}, I, φ^p and
 //!   the voxel tallies; after the six faces `reduce` (one workgroup, fixed order) forms the
 //!   order's tallies and evaluates the stopping rule (D1) on the GPU.
@@ -72,17 +73,19 @@
 //! * **Measured on lavapipe** (llvmpipe, Mesa 22.3.6; `gpu_tests.rs`). T18: 12×10×14 white
 //!   noise, environment + directional light, m = 5, 3 orders: GPU vs CPU-f32 max relative
 //!   difference 3.2·10⁻⁷ over I, U, φ and φ^p where the CPU value is above 10⁻⁶ of its
-//!   maximum, relative RMSE 5.5·10⁻⁸, tallies 5.2·10⁻⁷ of the input (bounds: the spec's 10⁻⁵
+//!   maximum, relative RMSE 5.8·10⁻⁸, tallies 5.2·10⁻⁷ of the input (bounds: the spec's 10⁻⁵
 //!   and 10⁻⁶, 10⁻⁵ for the tallies). Five runs (four on reused buffers, one fresh) bitwise
-//!   identical. T15 (GPU slotted ≡ CPU Alg 2, stop at rel 10⁻⁴): zero wrap m = 3 2.9·10⁻⁷
-//!   (19 orders on both), periodic m = 4 2.3·10⁻⁷, the paper's area and Δl/ω_z 2.3·10⁻⁷ (60
-//!   orders, cap), HG g = 0.7 with six I 0 (bitwise equal); the same order count and stop on
+//!   identical. T15 (GPU slotted ≡ CPU Alg 2, stop at rel 10⁻⁴): zero wrap m = 3 5.4·10⁻⁷
+//!   (19 orders on both), periodic m = 4 5.8·10⁻⁷, the paper's area and Δl/ω_z 9.2·10⁻⁷ (60
+//!   orders, cap), HG g = 0.7 with six I 3.5·10⁻⁷ (2.9, 2.3, 2.3·10⁻⁷ and bitwise equal
+//!   before the CPU's f32 kernel fused its multiply-adds); the same order count and stop on
 //!   both in every case. T7 on the GPU: furnace max |I/σsL − 1| = 6.7·10⁻⁷ (σt h = 0.01) and
 //!   8.3·10⁻⁷ (0.1), g = 0 and 0.9 (bound 10⁻⁴). T20 on the GPU: vacuum, α ∈ {0, ½, 1},
 //!   σt h up to 10³ on 7×5×9 finite and ≥ 0; α = 0 gives I = j/4π and U¹ = 0; vacuum
 //!   fluence 4π to 1.2·10⁻⁷. The conformance suite (`tests/conformance.rs`) passes for
 //!   `lpm` and `lpm:baked` on the GPU. The residual differences are the GPU compiler's
-//!   rounding (division, possible fused multiply-adds).
+//!   rounding (division) and the CPU's fused multiply-adds (WGSL `fma()` at the places of
+//!   [`cpu::fmadd`] would mirror them).
 //!
 //! ## Decisions where the paper is silent (each with its measurement and the test that
 //! pins it, `tests.rs`)
@@ -98,7 +101,7 @@
 //!   grids); an oblique pure absorber leaves e^{−σt H/|ω_n|} per ray to 10⁻¹² (`t4_…`);
 //!   the paper's Δl/ω_z fails it.
 //! * **D4 deposit.** The exact ∫L ds deposit conserves each order to rounding: injected +
-//!   emitted − exited − absorbed − scattered ≤ 2.0·10⁻¹⁵ (f64) and 2.0·10⁻⁸ (f32) of the
+//!   emitted − exited − absorbed − scattered ≤ 2.0·10⁻¹⁵ (f64) and 2.1·10⁻⁸ (f32) of the
 //!   input on a white-noise medium under an environment plus a directional light, for every
 //!   wrap rule; the paper's deposit L_in(1 − e^{−Ks s}) loses 0.254 of it (`t6_…`, bounds
 //!   10⁻¹⁰, 10⁻⁵). **Furnace** (acceptance 2, `t7_…`; 16³, α = 1, uniform L = 1, orders to
@@ -112,7 +115,7 @@
 //!   isotropic coarse F is set exactly to |Ω^i||Ω^{d′}|/4π (the renormalised limit).
 //! * **Symmetry and precision.** A homogeneous cube with a centred emitter under uniform light
 //!   is invariant under the 48 symmetries to 2.8·10⁻¹⁶ (`t8_…`); f32 vs f64 on a 32³ white
-//!   noise medium, 3 orders: 2.6·10⁻⁷ (I) and 1.3·10⁻⁷ (φ) of the maximum (`t19_…`, spec
+//!   noise medium, 3 orders: 2.2·10⁻⁷ (I) and 1.3·10⁻⁷ (φ) of the maximum (`t19_…`, spec
 //!   64³; bound 10⁻⁴); 1 and 2 threads bit-identical (`t23_…`). A 12³ slab at α = 0.95 needs
 //!   64 orders to ε = 10⁻⁶ (unshot ratio 0.808, settled to 4·10⁻¹⁰); ε and ε/10 differ by
 //!   6.4·10⁻⁷ (`t13_…`).
@@ -123,7 +126,8 @@
 //!   per order and channel = 265 n³) before the x-layout change and 21.1 s after it in a run
 //!   whose triad probe read 16.7/57.0 GB/s against 110/40.8 GB/s for the first: the machine
 //!   was loaded.
-//! * **Vectorised sweep and collect** (issue 16 acceptance 3). `perf record` of the 32³
+//! * **Vectorised sweep and collect** (issue 16 acceptance 3, first pass, SSE build; the
+//!   kernel's numbers here are superseded by the next entry). `perf record` of the 32³
 //!   bench: 54 % in the sweep's scalar loop (bounds checks on T reloaded after every libm
 //!   call), 30 % in libm `expm1f`, 9 % in the collect. Now (a) a row of rays is four
 //!   contiguous slices (ray, U, σt, T; the lateral stride is 1 in every layout) through
@@ -131,7 +135,7 @@
 //!   evaluated, one selected) and in f32 uses [`cpu::exp_neg_f32`] (Cody–Waite reduction,
 //!   degree-7 polynomial, 2^k from bits: 1.15 ulp measured, bound 2, test `exp_neg_f32_matches_f64`; E, φ1, φ2
 //!   within 6.3·10⁻⁸, 1.6·10⁻⁷, 3.7·10⁻⁷ of f64, `phis_f32_matches_f64`), so the loop
-//!   compiles to packed SSE (126 packed mul/add/div in the sweep), (c) the collect runs
+//!   compiles to packed SIMD, (c) the collect runs
 //!   direction-outer over each z-slice into six SoA accumulators, keeping the per-voxel
 //!   summation order (bit-identical). f64 keeps libm `expm1` (its results are unchanged).
 //!   Measured back to back (one 64³ RGB solve plus the shared setup, `perf stat`
@@ -139,15 +143,41 @@
 //!   old 9.09 / 9.86 CPU-s, new 4.39 / 4.48 CPU-s: 2.1× less work. All lpm tests (T1–T8,
 //!   T13, T17, T19–T23) pass unchanged; T23 (1 vs 2 threads bit-identical) included. After
 //!   the change the sweep is 70 % and the collect 14 % of the profile.
-//!   **Roofline** (counted from the code, not measured): a sub-segment is ≈ 70 flops (two
-//!   8-term series, the polynomial exp, one division, the transport) on 16 bytes (U, σt
-//!   read, T read and written) that sit in L2/L3 for one direction's sweep: compute-bound.
-//!   A 64³ RGB solve is 3 orders × 3 channels × 7.0·10⁷ = 6.3·10⁸ sub-segments = 4.4·10¹⁰
-//!   flops; with SSE (4 lanes, the workspace builds for baseline x86-64 and forbids unsafe,
-//!   so no AVX-512 `target_feature` path) at ~2 packed ops per cycle and ~3 GHz that is
-//!   ~0.9 s on two idle cores, i.e. the 1.0 s target is at this build's roofline; AVX-512
-//!   (`-C target-cpu=native`, a workspace decision) would have 4× the lanes. Not measured
-//!   on an idle machine: the target is not demonstrated.
+//! * **Fused kernel, full blocks, blocked collect** (issue 16 acceptance 3, second pass;
+//!   the workspace now builds for x86-64-v3, 8 f32 lanes). Measured on the shared 2-vCPU
+//!   Intel Xeon (AVX-512 capable, built for AVX2 + FMA; load average 4–8 from other
+//!   sessions), one 64³ RGB f32 solve (m = 5, 3 orders, the bench's medium and light) plus
+//!   its setup (0.15 CPU-s), `RAYON_NUM_THREADS=1`, `perf stat` task-clock, A/B back to back:
+//!   **before 2.66 / 2.84 / 2.75 CPU-s, after 1.69 / 1.68 / 1.69 CPU-s** (solve alone ≈ 2.60
+//!   → 1.54 CPU-s, 1.7× less work; 2.4 ns → 1.2 ns per sub-segment per core). Steps:
+//!   (a) [`cpu::fmadd`]: the f32 kernel's multiply-adds fused (Horner chains half as long)
+//!   and one series (φ2's; φ1 = 1 − τφ2, E = 1 − τφ1) instead of two: the kernel alone, on
+//!   L1-resident 64-ray rows, 1.40 → 0.85 ns per sub-segment (one series without fusing:
+//!   no change, the kernel was bound by its dependent chains, not by its op count; Estrin
+//!   instead of Horner, a degree-6 exp, 7 series terms, no division: none faster by more
+//!   than noise); whole solve 2.85 / 2.80 → 2.39 / 2.44 CPU-s. (b) `transport_row` in
+//!   padded 8-ray blocks, no scalar epilogue: 2.87 → 2.51 CPU-s (A/B on top of (a); before
+//!   (a) no measurable change). (c) The collect in 512-voxel blocks whose sums stay in L1:
+//!   its profile share 0.51 → 0.42 CPU-s. (d) The x-faces' transpose back
+//!   (`from_x_layout`) tiled: 12 % → 6 % of the profile. Results: f64 bit-identical
+//!   (checked on the 32³ bench medium) and no slower (1.96 / 1.95 → 1.87 / 1.91 CPU-s for two
+//!   32³ RGB solves); f32 moves by rounding only: 5.0·10⁻⁷ max relative (I and φ above
+//!   10⁻⁶ of the maximum) against the unfused kernel; E, φ1, φ2 within 4.7·10⁻⁸, 1.6·10⁻⁷,
+//!   3.4·10⁻⁷ of f64 (`phis_f32_matches_f64`), exp 0.86 ulp; T19 2.2·10⁻⁷, T7 f32 8.8·10⁻⁷,
+//!   T6 f32 2.1·10⁻⁸, T18 GPU vs CPU 3.2·10⁻⁷, T15 ≤ 9.2·10⁻⁷; T23 bit-identical.
+//!   **Profile after** (`perf record`, 1 thread, 64³ RGB incl. setup): sweep 46–50 %
+//!   (about half of it the kernel's arithmetic, the rest stalls on the σt, U and T streams:
+//!   3 MiB per direction, above the 2 MiB L2), collect 22 % (stalls reading the 25 T rows,
+//!   25 MiB per face, from L3), memset 8 % (`g.fill` per direction in `solve` and the
+//!   x-faces' zeroed scratch T in `sweep`), the transpose back 6 %, the bench's noise
+//!   setup 4 %. What is left is memory traffic of the outer structure: sweeping several
+//!   directions per pass over a slab (σt and U read once), collecting the x-faces from
+//!   their own layout (no scratch T, no transpose, no fill) and skipping the fill of T
+//!   buffers that are overwritten. **Roofline** (counted from the code; the VM exposes no
+//!   cycle counters): ≈ 45 vector ops per 8 sub-segments after fusing, i.e. ≈ 2.8 cycles
+//!   per sub-segment at 2 vector ops per cycle, ≈ 0.9 ns at 3 GHz: the measured 0.85 ns is
+//!   at it, so of the 1.54 CPU-s of a 64³ RGB solve (6.3·10⁸ sub-segments) the kernel's
+//!   arithmetic is ≈ 0.54 and the rest is memory traffic and the collect.
 //! * **D12 wrap.** `Open` (default) re-enters rays through a side face with the boundary
 //!   radiance at order 0 and 0 after; `Zero` is the paper's; `Periodic` carries the ray.
 //! * **D1 stopping.** [`Orders::Converge`] continues while the unshot power
