@@ -201,9 +201,9 @@
 //!   unstreamed and 1.73 GB at S = 16, the paper's (U = I = 6, RGB) 8.878 GB, 3.845 GB
 //!   without T and 0.573 GB streamed (spec §1.10).
 //!   **Cost** (`lpm_memory`, one order, one channel, f32, m = 5, 2 threads, /proc CPU
-//!   seconds at load 4.5–6 on the shared 2 cores): 64³ unstreamed 1.13, 1.11, 1.13, 1.12 vs
-//!   S = 16 0.98, 0.98, 0.96, 0.99 CPU-s (same processes, unstreamed first); 128³ 8.57 vs
-//!   6.86. Streaming costs nothing here and is ~13 % cheaper: the slice's T (6.6 MB at 64³
+//!   seconds at load 4.5–11 on the shared 2 cores): 64³ unstreamed 1.13, 1.11, 1.13, 1.12,
+//!   1.16 vs S = 16 0.98, 0.98, 0.96, 0.99, 0.99 CPU-s (same processes, unstreamed first);
+//!   128³ 8.57, 8.72 vs 6.86, 7.04. S = 1 was not timed. Streaming costs nothing here and is ~13 % cheaper: the slice's T (6.6 MB at 64³
 //!   instead of 26 MB) stays in cache between the sweep and the collect, and the x faces
 //!   lost their scratch T and transpose. The paper's streaming formula counts the volume
 //!   per slice too; ours keeps it resident, so at S = 16 ours is 3.0× the paper's (1.59 GB
@@ -251,8 +251,8 @@
 //!   resident part exactly at 16³–128³, unstreamed and at S = 16 (128³: 379.0 MB unstreamed,
 //!   total with the transient ray states 397.7 MB, process peak RSS 459 MB; S = 16 195.5 MB,
 //!   total 214.2 MB; the paper's formula 329 MB, RGB 986 MB, streaming 42.5 MB). 256³ by the
-//!   formula only: 3.16 GB unstreamed, 1.59 GB at S = 16 (T 105 MB). The full run takes 34.7 s
-//!   wall, 17.8 CPU-s. Ray effect (spec §5 b, 33³, σt h = 0.01): on the shells r ∈ [13h, 16h) the
+//!   formula only: 3.16 GB unstreamed, 1.59 GB at S = 16 (T 105 MB). The full run took 34.7 s
+//!   and 45.8 s wall (load 6 and 10), 17.8 and 18.1 CPU-s. Ray effect (spec §5 b, 33³, σt h = 0.01): on the shells r ∈ [13h, 16h) the
 //!   fraction of voxels below 0.1× the exact uncollided fluence falls from 0.97 (m = 3) to
 //!   0.85, 0.69–0.77, 0.58–0.68 (m = 5, 7, 9) and stays there at m = 11.
 
