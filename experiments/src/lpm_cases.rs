@@ -929,7 +929,7 @@ fn beam_order0(geo: &BeamGeometry, w: [f64; 3], grid: &Grid, v: usize, q: usize)
                 let z = (k as f64 + (c as f64 + 0.5) / q as f64) * h;
                 let depth = 1.0 - h - z;
                 let (x0, y0) = (x - depth * s[0], y - depth * s[1]);
-                if x0 >= rect[0].0 && x0 < rect[0].1 && y0 >= rect[1].0 && y0 < rect[1].1 {
+                if (rect[0].0..rect[0].1).contains(&x0) && (rect[1].0..rect[1].1).contains(&y0) {
                     acc += (-sigma * depth / w[2].abs()).exp();
                 }
             }
@@ -1114,7 +1114,7 @@ pub fn beam_case(geo: &BeamGeometry, tilt_deg: f64, g: f64, ms: &[usize]) -> Res
     }
     let interior = |v: usize| {
         let [i, j, k] = grid.coords(v);
-        [i, j, k].iter().all(|&c| c >= 1 && c <= n - 2)
+        [i, j, k].iter().all(|c| (1..=n - 2).contains(c))
     };
     let (entry_s, entry_rect) = geo.entry(w);
     let centre_at = |s: [f64; 2], rect: [(f64, f64); 2], k: usize| {

@@ -64,6 +64,11 @@ pub struct MemoryRow {
     pub streamed_measured_resident: Option<u64>,
     /// T of one slice with streaming, bytes.
     pub streamed_t: u64,
+    /// CPU seconds (user + system, 2 threads) of the unstreamed one-order solve (empty above
+    /// --measure-max).
+    pub cpu_s_unstreamed: Option<f64>,
+    /// CPU seconds of the streamed one-order solve.
+    pub cpu_s_streamed: Option<f64>,
     /// Medium buffers (σt, σs, j/4π and the x-layout copies).
     pub medium: u64,
     /// Two U sets of 6 cones.
@@ -83,6 +88,17 @@ pub struct MemoryRow {
 /// Runs the experiment.
 pub fn run(args: &Args) -> Result<Vec<MemoryRow>> {
     crate::experiment::run::<LpmMemory>(args)
+}
+
+/// CPU seconds (user + system, all threads) of this process so far, from /proc/self/stat
+/// (clock ticks of 10 ms), where /proc is readable.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name: state is field 3, utime 14, stime 15.
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
 }
 
 /// VmHWM (peak resident set) of this process in bytes, where /proc is readable.
@@ -148,8 +164,9 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<MemoryRow>> {
             solvers::budget::check(format!("lpm_memory n = {n}"), f.total())?;
             let medium = Medium::homogeneous(grid, 2.0 * n as f64, 0.9)?;
             let dirs = Directions::new(cfg.m)?;
-            let mut one = |c: &LpmConfig, what: &str| -> Result<u64> {
+            let mut one = |c: &LpmConfig, what: &str| -> Result<(u64, Option<f64>)> {
                 let t0 = std::time::Instant::now();
+                let c0 = cpu_seconds();
                 let s = lpm::solve(
                     &Backend::Cpu(Precision::F32),
                     &medium,
@@ -169,7 +186,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<MemoryRow>> {
                         s.memory.formula.resident()
                     );
                 }
-                Ok(s.memory.resident_measured)
+                let cpu = cpu_seconds()
+                    .zip(c0)
+                    .map(|(a, b)| ((a - b) * 100.0).round() / 100.0);
+                Ok((s.memory.resident_measured, cpu))
             };
             let unstreamed = one(&cfg, "unstreamed")?;
             let rss = peak_rss();
@@ -178,9 +198,9 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<MemoryRow>> {
         } else {
             None
         };
-        let (measured, rss_peak, streamed_measured) = match measured {
-            Some((m, r, s)) => (Some(m), r, Some(s)),
-            None => (None, None, None),
+        let (measured, rss_peak, streamed_measured, cpu_u, cpu_s) = match measured {
+            Some(((m, cu), r, (s, cs))) => (Some(m), r, Some(s), cu, cs),
+            None => (None, None, None, None, None),
         };
         let n64 = n as u64;
         let paper = lpm::paper_memory_bytes(n64, 6, 1, 25, 1);
@@ -205,6 +225,8 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<MemoryRow>> {
             streamed_formula_resident: fs.resident(),
             streamed_measured_resident: streamed_measured,
             streamed_t: fs.t,
+            cpu_s_unstreamed: cpu_u,
+            cpu_s_streamed: cpu_s,
             medium: f.medium,
             u: f.u,
             i: f.i,

@@ -232,8 +232,8 @@ impl<T: Real> Alg1Lpm<T> {
                         l = l_out;
                         let src = if paper { dep } else { ss * int };
                         let mut total = T::zero();
-                        for d in 0..CONES {
-                            let du = wu[d] * src;
+                        for (d, &w) in wu.iter().enumerate() {
+                            let du = w * src;
                             out.u_cur[d][v] = out.u_cur[d][v] + du;
                             if out.intensity.len() == CONES {
                                 out.intensity[d][v] = out.intensity[d][v] + du;

@@ -1,6 +1,7 @@
 //! The CPU solver: Gruson's propagate/collect split (LPM Alg 2, Eq 6) with rayon, one task
-//! per direction of the current LPM (each owns its T buffer), then a per-voxel collect that
-//! sums the directions in a fixed order. Bit-identical for any thread count (test T23).
+//! per direction of the current LPM (each owns its T buffer of one slice and its ray state,
+//! D19), then after each slice a per-voxel collect that sums the directions in a fixed order.
+//! Bit-identical for any thread count (test T23) and any slicing (T16).
 
 use super::directions::{CONE_SOLID_ANGLE, CONES, Directions, PhaseMatrix, lateral_axes};
 use super::geometry::DirectionTable;

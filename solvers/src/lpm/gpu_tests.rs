@@ -373,7 +373,9 @@ fn t20_hard_inputs_on_gpu() {
 /// fields, orders and tallies (bound 10⁻⁶ relative; measured bitwise, asserted below as
 /// well), for the open and the periodic wrap, six I buffers with g = 0.6 and the stopping
 /// rule; and the streamed GPU matches CPU-f32 within T18's bounds. T17 on the GPU: the sizes
-/// of the allocated wgpu buffers equal our device formula exactly at every S.
+/// of the allocated wgpu buffers equal our device formula exactly at every S, and a memory
+/// budget between the S = 1 and the unstreamed bytes makes `Auto` stream within it (below
+/// S = 1 it is a typed error).
 #[test]
 fn t16_gpu_streamed_equals_unstreamed() {
     with_gpu("t16_gpu_streamed_equals_unstreamed", |ctx| {
@@ -431,6 +433,41 @@ fn t16_gpu_streamed_equals_unstreamed() {
                 assert!(worst <= 1e-6, "T16 GPU {what} S = {s}: {worst:e}");
                 assert!(bitwise, "T16 GPU {what} S = {s}: not bitwise");
             }
+            // T17 on the GPU: a budget halfway between the S = 1 and the unstreamed device
+            // bytes makes Auto stream, within the budget, with the same results.
+            let one = gpu_run(ctx, &medium, &b, &at(Streaming::Slabs(1)));
+            let budget = (one.memory.formula.total() + whole.memory.formula.total()) / 2;
+            let auto = gpu_run(
+                ctx,
+                &medium,
+                &b,
+                &LpmConfig {
+                    memory_budget: Some(budget),
+                    ..at(Streaming::Auto)
+                },
+            );
+            eprintln!(
+                "T17 GPU {what}: budget {budget} B → Auto S = {}, device bytes {} (S = 1 {}, unstreamed {})",
+                auto.memory.slabs,
+                auto.memory.resident_measured,
+                one.memory.resident_measured,
+                whole.memory.resident_measured
+            );
+            assert!((1..20).contains(&auto.memory.slabs));
+            assert!(auto.memory.resident_measured <= budget);
+            assert_eq!(auto.memory.resident_measured, auto.memory.formula.total());
+            assert!(auto.phi == whole.phi && auto.intensity == whole.intensity);
+            assert!(matches!(
+                GpuLpm::new(
+                    ctx,
+                    &medium,
+                    &LpmConfig {
+                        memory_budget: Some(one.memory.formula.total() - 1),
+                        ..at(Streaming::Auto)
+                    }
+                ),
+                Err(SolverError::TooLarge(_))
+            ));
             let (worst, rmse) = compare(
                 &format!("T16 GPU {what} S = 4 vs CPU-f32"),
                 &gpu_run(ctx, &medium, &b, &at(Streaming::Slabs(4))),

@@ -26,8 +26,9 @@
 //! * [`directions`]: the m×m gnomonic cells per face with exact solid angles (D10), the six
 //!   storage cones (D7) and F of LPM Eq 5 by Gauss quadrature, Sinkhorn-renormalised (D8).
 //! * [`geometry`]: per-(direction, slab) sub-segment tables in exact rational arithmetic.
-//! * [`cpu::CpuLpm`]: rayon sweeps (one task per direction of the LPM, each owning its T)
-//!   and a per-voxel collect in a fixed order; generic over `f32`/`f64`.
+//! * [`cpu::CpuLpm`]: rayon sweeps (one task per direction of the LPM, each owning its T of
+//!   one slice and its ray state) and a per-voxel collect in a fixed order after each slice;
+//!   generic over `f32`/`f64`.
 //! * [`gpu::GpuLpm`]: the wgpu kernels (f32, `lpm.wgsl`): class-slotted T, no atomics,
 //!   the same numbers as `CpuLpm<f32>` to 9.2·10⁻⁷ (section *GPU* below).
 //! * [`method::LpmMethod`]: the registered method `lpm[:baked|:paper]` (CPU f32/f64; GPU
@@ -36,7 +37,8 @@
 //!   ([`Formulas::paper`]: deposit L(1 − e^{−Ks s}), face area, Δl/ω_z) for the furnace and
 //!   balance tests that show their energy error.
 //!
-//! Not here yet (a later session): slice streaming (§4.2), Gauss–Seidel shooting (D30),
+//! Not here yet (a later session): streaming of the volume itself (σ, U, I stay resident:
+//! only T is sliced, D19) and the paper's copy/compute overlap (Fig 5), Gauss–Seidel shooting (D30),
 //! sub-LPMs (D11), first-collision light baking inside LPM (D13), the experiments of the
 //! issue, the paper's deposit on the GPU, the fused pull kernel and a float-atomic GPU
 //! variant for Fig 8 (wgpu 30's WGSL has no f32 atomics on lavapipe, the only adapter here;
@@ -68,8 +70,24 @@
 //!   that after the stopping order. I, U and φ are read back once at the end. Every buffer is
 //!   allocated once per [`GpuLpm`] (and reused by every solve), and each is checked against
 //!   `max_storage_buffer_binding_size` and u32 indexing before allocation, with a typed error
-//!   that names it (the 128³, m = 5 T buffer, 25 · 3 · 128³ words, is refused on lavapipe's 128 MiB,
-//!   `t20_hard_inputs_on_gpu`).
+//!   that names it (the unstreamed 128³, m = 5 T buffer, 25 · 3 · 128³ words, is refused on
+//!   lavapipe's 128 MiB with `Streaming::Whole`, `t20_hard_inputs_on_gpu`).
+//! * **Slice streaming on the GPU (D19).** tbuf holds the class-slotted T of one slice
+//!   (m² · slots · S n_b n_c words); per (face, slice) one uniform and one bind-group pair,
+//!   `sweep` runs the slice's slabs starting from the ray radiance and the raw ray tallies the
+//!   previous slice left in `rayt` (the last sub-segment's offsets, needed for the wrap, are
+//!   re-read from the table), and `collect` gathers the slice's voxels (one thread each).
+//!   The arithmetic per ray and voxel is the unstreamed one in the same order, so streamed =
+//!   unstreamed bitwise (T16 on the GPU, `t16_gpu_streamed_equals_unstreamed`: S = 1, 4, 16,
+//!   20 on 20×13×18, open wrap and periodic + HG g = 0.6 + six I + stopping rule: max
+//!   relative difference 0, every field and tally bitwise; streamed GPU vs CPU-f32 3.0·10⁻⁷).
+//!   [`Streaming::Auto`] takes the largest S whose T fits one storage binding (and u32
+//!   indexing, and the memory budget when one is set). The device bytes, measured as Σ
+//!   `wgpu::Buffer::size()`, equal our device formula exactly at every S (same test).
+//!   **128³, m = 5 on lavapipe** (`gpu_128_cubed_solves_with_streaming`): Auto S = 27, T
+//!   132.7 MB ≤ the 134.2 MB binding (unstreamed 629 MB), 322 MB of device buffers, one order
+//!   in 69 s wall (lavapipe on the shared 2 cores, under load), finite, positive, power
+//!   imbalance 1.8·10⁻⁶.
 //! * **Measured on lavapipe** (llvmpipe, Mesa 22.3.6; `gpu_tests.rs`). T18: 12×10×14 white
 //!   noise, environment + directional light, m = 5, 3 orders: GPU vs CPU-f32 max relative
 //!   difference 3.2·10⁻⁷ over I, U, φ and φ^p where the CPU value is above 10⁻⁶ of its
@@ -120,7 +138,9 @@
 //!   64 orders to ε = 10⁻⁶ (unshot ratio 0.808, settled to 4·10⁻¹⁰); ε and ε/10 differ by
 //!   6.4·10⁻⁷ (`t13_…`).
 //! * **Layout.** The x-faces sweep over copies of σt, σs and U in the layout
-//!   y + n_y(z + n_z x) and transpose their T back, so every sweep's rows are contiguous.
+//!   y + n_y(z + n_z x), so every sweep's rows are contiguous. T is in the slice layout
+//!   b + n_b(c + n_c(z − z0)) on every face (D19), so the x faces need no scratch T and no
+//!   transpose any more: the collect reads their T with the stride n_y n_z.
 //! * **Speed** (bench `benches/lpm.rs`, 64³, RGB f32 as three channel solves, 3 orders,
 //!   m = 5, 2 threads on a shared 2-core EPYC): 14.6 s (42.8 Mseg/s, 7.0·10⁷ sub-segments
 //!   per order and channel = 265 n³) before the x-layout change and 21.1 s after it in a run
@@ -185,8 +205,39 @@
 //!   [`Orders::Fixed`] is Alg 2's fixed count (T13, `t13_…`).
 //! * **D16 collect.** After each LPM (T holds the m² directions of one face).
 //! * **D2 accumulate.** I and U^{cur} accumulate; I = U⁰ + Σ_p U^p (T22, `t22_…`).
-//! * **Memory.** Every buffer is counted before allocation ([`memory_bytes`]); a grid beyond
-//!   the budget is a typed [`SolverError::TooLarge`] naming the grid (acceptance 5).
+//! * **Memory.** Every buffer is counted before allocation ([`memory_bytes_sliced`]); a grid
+//!   beyond the budget is a typed [`SolverError::TooLarge`] naming the grid and the streaming
+//!   (acceptance 5).
+//! * **D19 slice streaming** (§4.2, Fig 5; [`Streaming`], issue 16 item 4). Per face the sweep
+//!   axis is cut into slices of S slabs at full lateral extent; T (and the paper's deposit)
+//!   holds one slice per direction of the LPM, each direction's rays (radiance, last
+//!   sub-segment offsets, f64 tallies) are carried from slice to slice, and each slice is
+//!   collected before the next is swept. The collect runs per row of x (parallel over rows)
+//!   and sums the directions k = 0, 1, … from zero per voxel as before, and the deposited and
+//!   absorbed tallies are running sums per row in sweep order, folded in row order: the
+//!   fields *and* the tallies do not depend on S. Only T is sliced; σ, U, I and φ stay
+//!   resident (the paper also streams the volume to the device; not here). **T16**
+//!   (`t16_streamed_equals_unstreamed`): 20×13×18 white noise, environment + directional
+//!   light, S ∈ {1, 4, 16, 20} vs `Whole`, f32 and f64, open, zero and periodic wrap (the
+//!   last with HG g = 0.6, six I and the stopping rule, 6 orders), the paper's formulas: I,
+//!   U, φ, φ^p, orders and tallies bitwise equal. The existing tests print the numbers they
+//!   printed before the change (T7, T15, T18), as the per-voxel order is unchanged. **T17**
+//!   (`t17_streaming_memory_and_budget`): measured resident = formula exactly at S = 1, 3, 8,
+//!   20 (f32, f64); a budget halfway between the S = 1 and the unstreamed totals (805 680 B
+//!   f32 on 16×12×20) makes `Auto` pick S = 6 (total 789 680 B, S = 7 over it), bitwise equal
+//!   to the unstreamed solve; a budget below S = 1 is refused naming "streaming = 1 slab(s)
+//!   per slice", `Whole` beyond it naming "without streaming", `Slabs(0)` naming `streaming`.
+//!   At 256³ (m = 5, f32, one channel, D_I = 1, 3 orders kept) our formula gives 3.30 GB
+//!   unstreamed and 1.73 GB at S = 16, the paper's (U = I = 6, RGB) 8.878 GB, 3.845 GB
+//!   without T and 0.573 GB streamed (spec §1.10).
+//!   **Cost** (`lpm_memory`, one order, one channel, f32, m = 5, 2 threads, /proc CPU
+//!   seconds at load 4.5–11 on the shared 2 cores): 64³ unstreamed 1.13, 1.11, 1.13, 1.12,
+//!   1.16 vs S = 16 0.98, 0.98, 0.96, 0.99, 0.99 CPU-s (same processes, unstreamed first);
+//!   128³ 8.57, 8.72 vs 6.86, 7.04. S = 1 was not timed. Streaming costs nothing here and is ~13 % cheaper: the slice's T (6.6 MB at 64³
+//!   instead of 26 MB) stays in cache between the sweep and the collect, and the x faces
+//!   lost their scratch T and transpose. The paper's streaming formula counts the volume
+//!   per slice too; ours keeps it resident, so at S = 16 ours is 3.0× the paper's (1.59 GB
+//!   vs 0.53 GB one channel at 256³, one order).
 //!
 //! **T9–T12 measured** (CPU f64, exact formulas, open wrap; tests in
 //! `experiments/tests/lpm_accuracy.rs`, cases in `experiments::lpm_cases`, plots in the
@@ -226,10 +277,12 @@
 //!   3.2·10⁻² / 3.3·10⁻², order 3: 3.2·10⁻² / 3.6·10⁻²; total fluence per order within
 //!   −0.8 % … +1.3 %. Asserted: order 0 ≤ 5·10⁻³, orders 1–3 ≤ 6·10⁻², totals within 3 %.
 //! * **Experiments** (`results/lpm_memory`, `results/lpm_accuracy`). Memory (m = 5, f32, one
-//!   channel, no streaming: not implemented): the resident bytes the solver reports equal
-//!   [`memory_bytes`]' resident part exactly at 16³–128³ (379 MB at 128³; total with the
-//!   transient ray states 607 MB; process peak RSS 471 MB; the paper's formula 329 MB, RGB
-//!   986 MB). Ray effect (spec §5 b, 33³, σt h = 0.01): on the shells r ∈ [13h, 16h) the
+//!   channel, one order): the resident bytes the solver reports equal [`memory_bytes_sliced`]'
+//!   resident part exactly at 16³–128³, unstreamed and at S = 16 (128³: 379.0 MB unstreamed,
+//!   total with the transient ray states 397.7 MB, process peak RSS 459 MB; S = 16 195.5 MB,
+//!   total 214.2 MB; the paper's formula 329 MB, RGB 986 MB, streaming 42.5 MB). 256³ by the
+//!   formula only: 3.16 GB unstreamed, 1.59 GB at S = 16 (T 105 MB). The full run took 34.7 s
+//!   and 45.8 s wall (load 6 and 10), 17.8 and 18.1 CPU-s. Ray effect (spec §5 b, 33³, σt h = 0.01): on the shells r ∈ [13h, 16h) the
 //!   fraction of voxels below 0.1× the exact uncollided fluence falls from 0.97 (m = 3) to
 //!   0.85, 0.69–0.77, 0.58–0.68 (m = 5, 7, 9) and stays there at m = 11.
 
@@ -453,13 +506,14 @@ impl LpmConfig {
         }
     }
 
-    /// Refuses `needed` bytes on `grid` above the budget (`slabs`: the slabs per slice of
-    /// the solve, for the message; ≥ the longest axis means without streaming).
+    /// Refuses `needed` bytes on `grid` above the budget (an unstreamed solve, for the
+    /// message).
     pub fn check_budget(&self, grid: &Grid, needed: u64) -> Result<(), SolverError> {
         self.check_budget_sliced(grid, needed, usize::MAX)
     }
 
-    /// [`Self::check_budget`] for a solve streamed with `slabs` slabs per slice.
+    /// [`Self::check_budget`] for a solve with `slabs` slabs per slice (≥ the longest axis:
+    /// without streaming); the message names the grid and the streaming.
     pub fn check_budget_sliced(
         &self,
         grid: &Grid,
