@@ -83,7 +83,10 @@
 //!   relative difference 0, every field and tally bitwise; streamed GPU vs CPU-f32 3.0·10⁻⁷).
 //!   [`Streaming::Auto`] takes the largest S whose T fits one storage binding (and u32
 //!   indexing, and the memory budget when one is set). The device bytes, measured as Σ
-//!   `wgpu::Buffer::size()`, equal our device formula exactly at every S (same test).
+//!   `wgpu::Buffer::size()`, equal our device formula exactly at every S (same test); a
+//!   budget halfway between the S = 1 (1.09 MB) and the unstreamed (2.37 MB) device bytes
+//!   makes `Auto` pick S = 7 (1.73 MB ≤ the budget) with the unstreamed results, and a budget
+//!   below S = 1 is a typed error.
 //!   **128³, m = 5 on lavapipe** (`gpu_128_cubed_solves_with_streaming`): Auto S = 27, T
 //!   132.7 MB ≤ the 134.2 MB binding (unstreamed 629 MB), 322 MB of device buffers, one order
 //!   in 69 s wall (lavapipe on the shared 2 cores, under load), finite, positive, power
