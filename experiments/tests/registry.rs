@@ -177,7 +177,10 @@ fn renderings_quick_sweep() {
         .filter(|c| c.get("scene") == "nebula" && c.num("albedo") == 0.9)
         .collect();
     for boundary in ["paper", "marshak"] {
-        let n = claims.iter().filter(|c| c.get("boundary") == boundary).count();
+        let n = claims
+            .iter()
+            .filter(|c| c.get("boundary") == boundary)
+            .count();
         assert_eq!(n, 2, "{boundary}: one claim row per downsampling factor");
     }
     for c in claims {

@@ -36,13 +36,21 @@
 //! * [`Formulas`]: the exact form (default) and the paper's literal formulas
 //!   ([`Formulas::paper`]: deposit L(1 − e^{−Ks s}), face area, Δl/ω_z) for the furnace and
 //!   balance tests that show their energy error.
+//! * [`alg1::Alg1Lpm`]: Fattal's sequential form (LPM Alg 1: one thread, no T, deposits
+//!   straight into U, I and φ), the T15 reference and the Fig 8 baseline (`lpm_speedup`).
+//!
+//! Experiments: `lpm_memory` (Fig 7, with and without streaming), `lpm_speedup` (Fig 8),
+//! `lpm_cloud` (Figs 9/10 analogs against the path tracer), `lpm_accuracy` (T9–T12, the ray
+//! effect, the collimated beam), and LPM's points in the `accuracy_cost` atlas at 1, 2, 3
+//! orders and converged.
 //!
 //! Not here yet (a later session): streaming of the volume itself (σ, U, I stay resident:
-//! only T is sliced, D19) and the paper's copy/compute overlap (Fig 5), Gauss–Seidel shooting (D30),
-//! sub-LPMs (D11), first-collision light baking inside LPM (D13), the experiments of the
-//! issue, the paper's deposit on the GPU, the fused pull kernel and a float-atomic GPU
+//! only T is sliced, D19) and the paper's copy/compute overlap (Fig 5), Gauss–Seidel shooting
+//! (D30; so T14 has nothing to test), sub-LPMs (D11), first-collision light baking inside LPM
+//! (D13), the paper's deposit on the GPU, the fused pull kernel, and a float-atomic GPU
 //! variant for Fig 8 (wgpu 30's WGSL has no f32 atomics on lavapipe, the only adapter here;
-//! not built), the GPU timings of acceptance 3 (no real GPU in this session).
+//! `lpm_speedup` reports it as not built), the GPU timings of acceptance 3 (no real GPU was
+//! lent to this task).
 //!
 //! ## GPU (`gpu.rs`, `lpm.wgsl`; issue 16 build item 3, D17)
 //! * **Kernels.** Per order and face: `sweep`, one thread per (direction k of the face, ray
