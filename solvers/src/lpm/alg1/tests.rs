@@ -4,86 +4,12 @@
 //! (`cargo test --release -p solvers --lib lpm::alg1 -- --nocapture`).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+use super::super::gpu_tests::{compare, lights, with_gpu};
 use super::super::tests::random_medium;
 use super::super::*;
 use super::Alg1Lpm;
-use crate::gpu::GpuContext;
 use crate::scene::Phase;
 use crate::{Backend, Medium, Precision, Real};
-use std::sync::{Mutex, OnceLock};
-
-/// An environment of radiance 1 plus a directional light of irradiance 2.
-fn lights(m: usize) -> BoundaryLight {
-    let dirs = Directions::new(m).unwrap();
-    let mut b = BoundaryLight::uniform(&dirs, 1.0);
-    let d = BoundaryLight::directional(&dirs, [0.3, -0.2, 0.9], 2.0).unwrap();
-    for (x, y) in b.radiance.iter_mut().zip(&d.radiance) {
-        *x += y;
-    }
-    b
-}
-
-/// (max |a − r|/|r| where |r| > 10⁻⁶ max |r|, relative RMSE).
-fn diff(a: &[f64], r: &[f64]) -> (f64, f64) {
-    assert_eq!(a.len(), r.len());
-    let max = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let worst = a
-        .iter()
-        .zip(r)
-        .filter(|(_, r)| r.abs() > 1e-6 * max)
-        .fold(0.0f64, |m, (a, r)| m.max((a - r).abs() / r.abs()));
-    let num: f64 = a.iter().zip(r).map(|(a, r)| (a - r).powi(2)).sum();
-    let den: f64 = r.iter().map(|r| r * r).sum();
-    (worst, if den > 0.0 { (num / den).sqrt() } else { 0.0 })
-}
-
-/// Every field (I, U, φ, kept φ^p) of `a` against `r`: (max relative, max relative RMSE);
-/// the order counts and stops agree and the tallies agree to `tally_tol` of the input.
-fn compare(what: &str, a: &LpmSolution<f64>, r: &LpmSolution<f64>, tally_tol: f64) -> (f64, f64) {
-    assert_eq!(a.orders, r.orders, "{what}: orders");
-    assert_eq!(a.stop, r.stop, "{what}: stop");
-    assert_eq!(
-        a.phi_orders.len(),
-        r.phi_orders.len(),
-        "{what}: kept orders"
-    );
-    assert_eq!(a.intensity.len(), r.intensity.len(), "{what}: I buffers");
-    let mut fields: Vec<(&[f64], &[f64])> = vec![(&a.phi, &r.phi)];
-    for (x, y) in a.intensity.iter().zip(&r.intensity) {
-        fields.push((x, y));
-    }
-    for (x, y) in a.unshot.iter().zip(&r.unshot) {
-        fields.push((x, y));
-    }
-    for (x, y) in a.phi_orders.iter().zip(&r.phi_orders) {
-        fields.push((x, y));
-    }
-    let (mut worst, mut rmse) = (0.0f64, 0.0f64);
-    for (x, y) in fields {
-        let (w, e) = diff(x, y);
-        worst = worst.max(w);
-        rmse = rmse.max(e);
-    }
-    let mut tally: f64 = 0.0;
-    for (x, y) in a.tallies.iter().zip(&r.tallies) {
-        let scale = (y.injected + y.emitted).abs().max(1e-300);
-        for (p, q) in [
-            (x.injected, y.injected),
-            (x.emitted, y.emitted),
-            (x.exited, y.exited),
-            (x.absorbed, y.absorbed),
-            (x.scattered, y.scattered),
-        ] {
-            tally = tally.max((p - q).abs() / scale);
-        }
-    }
-    eprintln!(
-        "{what}: max rel {worst:.2e}, rel RMSE {rmse:.2e}, tallies {tally:.2e} ({} orders)",
-        a.orders
-    );
-    assert!(tally < tally_tol, "{what}: tallies differ by {tally:e}");
-    (worst, rmse)
-}
 
 fn alg1<T: Real>(m: &Medium<f64>, b: &BoundaryLight, cfg: &LpmConfig) -> LpmSolution<f64> {
     widen(
@@ -211,41 +137,27 @@ fn t15_alg1_stops_like_alg2() {
     assert!(w < 1e-13, "{w:e}");
 }
 
-static GPU: OnceLock<Option<Mutex<GpuContext>>> = OnceLock::new();
-
 /// T15 on the GPU: the slotted kernels (f32) ≡ Alg 1 in f32, relative RMSE ≤ 10⁻⁶ and max
 /// relative ≤ 10⁻⁵ on every field and tallies within 10⁻⁵ of the input (open wrap m = 5; HG g = 0.7, six I, m = 3).
 #[test]
 fn t15_gpu_slotted_equals_alg1() {
-    let gpu = GPU.get_or_init(|| {
-        GpuContext::for_tests()
-            .unwrap_or_else(|e| panic!("SCATTERBENCH_REQUIRE_GPU is set: {e}"))
-            .map(Mutex::new)
+    with_gpu("t15_gpu_slotted_equals_alg1", |ctx| {
+        let medium = random_medium([9, 11, 8], 3);
+        for (what, cfg) in cases()
+            .into_iter()
+            .filter(|(w, _)| w.starts_with("open") || w.starts_with("HG"))
+        {
+            let b = lights(cfg.m);
+            let g = solve(&Backend::Gpu(ctx), &medium, &b, &cfg, |_, _| {}).unwrap();
+            let (w, r) = compare(
+                &format!("T15 GPU vs Alg 1 f32 {what}"),
+                &g,
+                &alg1::<f32>(&medium, &b, &cfg),
+                1e-5,
+            );
+            assert!(r < 1e-6 && w < 1e-5, "{what}: {w:e} / {r:e}");
+        }
     });
-    let Some(ctx) = gpu else {
-        crate::gpu::log_uncaptured("t15_gpu_slotted_equals_alg1: skipped: no GPU adapter");
-        return;
-    };
-    let ctx = ctx.lock().unwrap_or_else(|e| e.into_inner());
-    crate::gpu::log_uncaptured(&format!(
-        "t15_gpu_slotted_equals_alg1: ran on {}",
-        ctx.describe()
-    ));
-    let medium = random_medium([9, 11, 8], 3);
-    for (what, cfg) in cases()
-        .into_iter()
-        .filter(|(w, _)| w.starts_with("open") || w.starts_with("HG"))
-    {
-        let b = lights(cfg.m);
-        let g = solve(&Backend::Gpu(&ctx), &medium, &b, &cfg, |_, _| {}).unwrap();
-        let (w, r) = compare(
-            &format!("T15 GPU vs Alg 1 f32 {what}"),
-            &g,
-            &alg1::<f32>(&medium, &b, &cfg),
-            1e-5,
-        );
-        assert!(r < 1e-6 && w < 1e-5, "{what}: {w:e} / {r:e}");
-    }
 }
 
 /// `time_directions` over every direction counts exactly the sub-segments of an order, none
