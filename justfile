@@ -1,6 +1,6 @@
 # Everyday recipes (https://github.com/casey/just). Each is one cargo command; no just needed to run them by hand.
 
-# Regenerate every figure and results/README.md (full size; about 25 min on 2 cores)
+# Regenerate every figure and results/README.md (full size; about 40 min on 2 cores)
 figures:
     cargo run --release -p experiments --bin figures
 
