@@ -53,10 +53,9 @@ use super::cpu::{segment, series_threshold};
 use super::directions::{CONE_SOLID_ANGLE, CONES, Directions, PhaseMatrix, lateral_axes};
 use super::geometry::DirectionTable;
 use super::{
-    Area, BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, MemoryBytes, OrderTally, Orders,
+    Area, BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, MemoryBytes, OrderTally,
     PathLength, WrapBc,
 };
-use crate::method::Stop;
 use crate::{Grid, Medium, Real, SolverError};
 use std::f64::consts::PI;
 
@@ -261,13 +260,7 @@ impl<T: Real> Alg1Lpm<T> {
         boundary: &BoundaryLight,
         dirs: &[usize],
     ) -> Result<(u64, f64), SolverError> {
-        if boundary.radiance.len() != self.dirs.len() {
-            return Err(SolverError::FieldSize {
-                field: "boundary radiance",
-                expected: self.dirs.len(),
-                got: boundary.radiance.len(),
-            });
-        }
+        boundary.check(&self.dirs)?;
         if let Some(&i) = dirs.iter().find(|&&i| i >= self.dirs.len()) {
             return Err(SolverError::BadParameter {
                 name: "dirs",
@@ -306,31 +299,19 @@ impl<T: Real> Alg1Lpm<T> {
         boundary: &BoundaryLight,
         mut observer: impl FnMut(usize, f64),
     ) -> Result<LpmSolution<T>, SolverError> {
-        if boundary.radiance.len() != self.dirs.len() {
-            return Err(SolverError::FieldSize {
-                field: "boundary radiance",
-                expected: self.dirs.len(),
-                got: boundary.radiance.len(),
-            });
-        }
+        boundary.check(&self.dirs)?;
         let start = std::time::Instant::now();
         let nv = self.grid.len();
         let per = self.dirs.per_face();
         let d_i = self.config.storage_i.count();
-        let (max_orders, rel) = match self.config.orders {
-            Orders::Fixed(k) => (k, None),
-            Orders::Converge { rel, max_orders } => (max_orders, Some(rel)),
-        };
+        let mut orders = super::OrderLoop::new(self.config.orders);
         let mut u_prev: Vec<Vec<T>> = (0..CONES).map(|_| self.source.clone()).collect();
         let mut u_cur: Vec<Vec<T>> = (0..CONES).map(|_| vec![T::zero(); nv]).collect();
         let mut intensity: Vec<Vec<T>> = (0..d_i).map(|_| self.source.clone()).collect();
         let mut phi = vec![T::zero(); nv];
         let mut phi_orders: Vec<Vec<T>> = Vec::new();
-        let mut tallies: Vec<OrderTally> = Vec::new();
         let h3 = self.grid.dl.powi(3);
-        let mut stop = Stop::Cap;
-        let mut first_unshot = f64::NAN;
-        for order in 0..max_orders {
+        for order in 0..orders.max_orders {
             for u in &mut u_cur {
                 u.fill(T::zero());
             }
@@ -370,49 +351,25 @@ impl<T: Real> Alg1Lpm<T> {
             if self.config.keep_orders {
                 phi_orders.push(phi_p);
             }
-            tally.unshot = tally.scattered;
-            let finite = [tally.injected, tally.exited, tally.emitted, tally.scattered]
-                .iter()
-                .all(|x| x.is_finite());
-            tallies.push(tally);
-            if order == 0 {
-                first_unshot = tally.unshot;
-            }
-            observer(order, tally.unshot / first_unshot);
-            if !finite {
-                stop = Stop::NonFinite;
+            if orders.finish(order, tally, &mut observer) {
                 break;
-            }
-            if let Some(rel) = rel {
-                if tally.unshot <= rel * first_unshot || tally.unshot.is_nan() {
-                    stop = Stop::Converged;
-                    break;
-                }
             }
         }
         let word = std::mem::size_of::<T>();
         let allocated = (u_prev.len() + u_cur.len() + intensity.len() + 4 + phi_orders.len()) * nv;
-        let tables: usize = self
-            .tables
-            .iter()
-            .map(|t| {
-                t.segs.capacity() * std::mem::size_of::<super::geometry::Seg>()
-                    + t.start.capacity() * std::mem::size_of::<usize>()
-            })
-            .sum();
         Ok(LpmSolution {
             grid: self.grid,
             intensity,
             unshot: u_prev,
             phi,
             phi_orders,
-            orders: tallies.len(),
-            tallies,
-            stop,
+            orders: orders.tallies.len(),
+            tallies: orders.tallies,
+            stop: orders.stop,
             seconds: start.elapsed().as_secs_f64(),
             memory: Memory {
                 formula: alg1_memory_bytes(&self.grid, &self.config, word as u64),
-                resident_measured: (allocated * word + tables) as u64,
+                resident_measured: (allocated * word) as u64 + super::table_bytes(&self.tables),
                 // No T buffer, nothing to slice: one slice of the whole grid.
                 slabs: self.grid.n.iter().copied().max().unwrap_or(1),
             },

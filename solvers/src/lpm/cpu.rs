@@ -6,10 +6,9 @@
 use super::directions::{CONE_SOLID_ANGLE, CONES, Directions, PhaseMatrix, lateral_axes};
 use super::geometry::DirectionTable;
 use super::{
-    Area, BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, OrderTally, Orders, PathLength,
-    StorageI, WrapBc,
+    Area, BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, OrderTally, PathLength, StorageI,
+    WrapBc,
 };
-use crate::method::Stop;
 use crate::{Grid, Medium, Real, SolverError};
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -548,21 +547,12 @@ impl<T: Real> CpuLpm<T> {
         boundary: &BoundaryLight,
         mut observer: impl FnMut(usize, f64),
     ) -> Result<LpmSolution<T>, SolverError> {
-        if boundary.radiance.len() != self.dirs.len() {
-            return Err(SolverError::FieldSize {
-                field: "boundary radiance",
-                expected: self.dirs.len(),
-                got: boundary.radiance.len(),
-            });
-        }
+        boundary.check(&self.dirs)?;
         let start = std::time::Instant::now();
         let nv = self.grid.len();
         let per = self.dirs.per_face();
         let d_i = self.config.storage_i.count();
-        let (max_orders, rel) = match self.config.orders {
-            Orders::Fixed(k) => (k, None),
-            Orders::Converge { rel, max_orders } => (max_orders, Some(rel)),
-        };
+        let mut orders = super::OrderLoop::new(self.config.orders);
         let paper = self.config.formulas.deposit == Deposit::Paper;
         let mut u_prev: Vec<Vec<T>> = (0..CONES).map(|_| self.source.clone()).collect();
         let mut u_cur: Vec<Vec<T>> = (0..CONES).map(|_| vec![T::zero(); nv]).collect();
@@ -582,12 +572,9 @@ impl<T: Real> CpuLpm<T> {
             .collect();
         let mut phi = vec![T::zero(); nv];
         let mut phi_orders: Vec<Vec<T>> = Vec::new();
-        let mut tallies: Vec<OrderTally> = Vec::new();
         let h3 = self.grid.dl.powi(3);
-        let mut stop = Stop::Cap;
-        let mut first_unshot = f64::NAN;
         let n = self.grid.n;
-        for order in 0..max_orders {
+        for order in 0..orders.max_orders {
             for u in &mut u_cur {
                 u.fill(T::zero());
             }
@@ -659,25 +646,8 @@ impl<T: Real> CpuLpm<T> {
             if self.config.keep_orders {
                 phi_orders.push(phi_p);
             }
-            tally.unshot = tally.scattered;
-            let finite = [tally.injected, tally.exited, tally.emitted, tally.scattered]
-                .iter()
-                .all(|x| x.is_finite());
-            tallies.push(tally);
-            if order == 0 {
-                first_unshot = tally.unshot;
-            }
-            let measure = tally.unshot / first_unshot;
-            observer(order, measure);
-            if !finite {
-                stop = Stop::NonFinite;
+            if orders.finish(order, tally, &mut observer) {
                 break;
-            }
-            if let Some(rel) = rel {
-                if tally.unshot <= rel * first_unshot || tally.unshot.is_nan() {
-                    stop = Stop::Converged;
-                    break;
-                }
             }
         }
         let capacity = |v: &[Vec<T>]| v.iter().map(|b| b.capacity()).sum::<usize>();
@@ -698,14 +668,7 @@ impl<T: Real> CpuLpm<T> {
         let memory = Memory {
             formula: self.memory_formula(),
             resident_measured: (allocated * std::mem::size_of::<T>()) as u64
-                + self
-                    .tables
-                    .iter()
-                    .map(|t| {
-                        t.segs.capacity() * std::mem::size_of::<super::geometry::Seg>()
-                            + t.start.capacity() * std::mem::size_of::<usize>()
-                    })
-                    .sum::<usize>() as u64,
+                + super::table_bytes(&self.tables),
             slabs: self.slabs,
         };
         Ok(LpmSolution {
@@ -714,9 +677,9 @@ impl<T: Real> CpuLpm<T> {
             unshot: u_prev,
             phi,
             phi_orders,
-            orders: tallies.len(),
-            tallies,
-            stop,
+            orders: orders.tallies.len(),
+            tallies: orders.tallies,
+            stop: orders.stop,
             seconds: start.elapsed().as_secs_f64(),
             memory,
         })

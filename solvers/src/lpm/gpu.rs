@@ -582,14 +582,7 @@ impl<'a> GpuLpm<'a> {
         boundary: &BoundaryLight,
         mut observer: impl FnMut(usize, f64),
     ) -> Result<LpmSolution<f32>, SolverError> {
-        let ndirs = self.setup.dirs.len();
-        if boundary.radiance.len() != ndirs {
-            return Err(SolverError::FieldSize {
-                field: "boundary radiance",
-                expected: ndirs,
-                got: boundary.radiance.len(),
-            });
-        }
+        boundary.check(&self.setup.dirs)?;
         let ctx = self.ctx;
         let grid = self.setup.grid;
         let nv = grid.len() as u64;

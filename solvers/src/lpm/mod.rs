@@ -649,6 +649,93 @@ impl BoundaryLight {
     }
 }
 
+impl BoundaryLight {
+    /// A typed error unless there is one radiance per direction of `dirs`.
+    pub fn check(&self, dirs: &Directions) -> Result<(), SolverError> {
+        if self.radiance.len() != dirs.len() {
+            return Err(SolverError::FieldSize {
+                field: "boundary radiance",
+                expected: dirs.len(),
+                got: self.radiance.len(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The order loop's bookkeeping (D1), one for every solver form (Alg 1, Alg 2): the tallies
+/// so far, the unshot power after order 0 and the stopping rule of [`Orders`].
+#[derive(Debug)]
+pub(crate) struct OrderLoop {
+    /// Most orders to run.
+    pub(crate) max_orders: usize,
+    rel: Option<f64>,
+    first_unshot: f64,
+    /// One tally per order run.
+    pub(crate) tallies: Vec<OrderTally>,
+    /// Why the loop stopped (`Cap` until a rule fires).
+    pub(crate) stop: Stop,
+}
+
+impl OrderLoop {
+    /// The loop of `orders`.
+    pub(crate) fn new(orders: Orders) -> Self {
+        let (max_orders, rel) = match orders {
+            Orders::Fixed(k) => (k, None),
+            Orders::Converge { rel, max_orders } => (max_orders, Some(rel)),
+        };
+        Self {
+            max_orders,
+            rel,
+            first_unshot: f64::NAN,
+            tallies: Vec::new(),
+            stop: Stop::Cap,
+        }
+    }
+
+    /// Records order `order`'s tally (its unshot power is what it scattered), shows the
+    /// observer unshot / unshot after order 0, and returns whether to stop now: a non-finite
+    /// tally, or the relative rule met.
+    pub(crate) fn finish(
+        &mut self,
+        order: usize,
+        mut tally: OrderTally,
+        observer: &mut impl FnMut(usize, f64),
+    ) -> bool {
+        tally.unshot = tally.scattered;
+        let finite = [tally.injected, tally.exited, tally.emitted, tally.scattered]
+            .iter()
+            .all(|x| x.is_finite());
+        self.tallies.push(tally);
+        if order == 0 {
+            self.first_unshot = tally.unshot;
+        }
+        observer(order, tally.unshot / self.first_unshot);
+        if !finite {
+            self.stop = Stop::NonFinite;
+            return true;
+        }
+        if let Some(rel) = self.rel {
+            if tally.unshot <= rel * self.first_unshot || tally.unshot.is_nan() {
+                self.stop = Stop::Converged;
+                return true;
+            }
+        }
+        false
+    }
+}
+
+/// Bytes of the geometry tables as allocated (Σ capacities).
+pub(crate) fn table_bytes(tables: &[geometry::DirectionTable]) -> u64 {
+    tables
+        .iter()
+        .map(|t| {
+            t.segs.capacity() * std::mem::size_of::<geometry::Seg>()
+                + t.start.capacity() * std::mem::size_of::<usize>()
+        })
+        .sum::<usize>() as u64
+}
+
 /// Power balance of one order (spec T6), in power units (radiance × area × solid angle).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct OrderTally {
