@@ -144,22 +144,6 @@ const LIGHTS: [(&str, &str, &str); 2] = [
     ),
 ];
 
-fn add(acc: &mut Image, im: &Image) {
-    for p in 0..acc.mean.len() {
-        acc.mean[p] += im.mean[p];
-        acc.stderr[p] = acc.stderr[p].hypot(im.stderr[p]);
-    }
-}
-
-fn zero(w: usize, h: usize) -> Image {
-    Image {
-        width: w,
-        height: h,
-        mean: vec![0.0; w * h],
-        stderr: vec![0.0; w * h],
-    }
-}
-
 /// The (≤ 3 orders, full) path-traced components of every channel, and their seconds: the
 /// pipeline's passes ([`pt_passes`]) with the multiple-scattering pass split at order 3.
 fn references(
@@ -173,14 +157,14 @@ fn references(
         let cam = ch.camera.context("the cloud scene has a camera")?;
         let [w, h] = cam.resolution;
         let mut low = PtComponents {
-            total: zero(w, h),
-            single: zero(w, h),
-            multiple: zero(w, h),
-            emission: zero(w, h),
-            background: zero(w, h),
+            total: Image::zeros(w, h),
+            single: Image::zeros(w, h),
+            multiple: Image::zeros(w, h),
+            emission: Image::zeros(w, h),
+            background: Image::zeros(w, h),
             renders: Vec::new(),
         };
-        let mut high = zero(w, h);
+        let mut high = Image::zeros(w, h);
         let mut k = 0u64;
         for pass in pt_passes(ch, &scene.effects) {
             let mut runs = vec![(pass.contributions, false)];
@@ -209,15 +193,15 @@ fn references(
                 let s = t0.elapsed().as_secs_f64();
                 seconds += s;
                 if above3 {
-                    add(&mut high, &im);
+                    high.add_independent(&im);
                     continue;
                 }
-                add(&mut low.total, &im);
+                low.total.add_independent(&im);
                 match pass.component {
-                    Component::Single => add(&mut low.single, &im),
-                    Component::Multiple => add(&mut low.multiple, &im),
-                    Component::Emission => add(&mut low.emission, &im),
-                    Component::Background => add(&mut low.background, &im),
+                    Component::Single => low.single.add_independent(&im),
+                    Component::Multiple => low.multiple.add_independent(&im),
+                    Component::Emission => low.emission.add_independent(&im),
+                    Component::Background => low.background.add_independent(&im),
                 }
                 low.renders.push((pass.component, contributions, s));
             }
@@ -230,8 +214,8 @@ fn references(
             background: low.background.clone(),
             renders: low.renders.clone(),
         };
-        add(&mut all.total, &high);
-        add(&mut all.multiple, &high);
+        all.total.add_independent(&high);
+        all.multiple.add_independent(&high);
         pt3.push(low);
         full.push(all);
     }

@@ -124,22 +124,6 @@ impl PtComponents {
     }
 }
 
-fn zero(w: usize, h: usize) -> Image {
-    Image {
-        width: w,
-        height: h,
-        mean: vec![0.0; w * h],
-        stderr: vec![0.0; w * h],
-    }
-}
-
-fn add(acc: &mut Image, im: &Image) {
-    for p in 0..acc.mean.len() {
-        acc.mean[p] += im.mean[p];
-        acc.stderr[p] = acc.stderr[p].hypot(im.stderr[p]);
-    }
-}
-
 /// Renders the components of `scene` under `effects` with the path tracer (`settings`'
 /// contributions are replaced per render, and its seed offset by the render's index).
 pub fn render_components(
@@ -207,11 +191,11 @@ pub fn components_from_parts(
         });
     }
     let mut out = PtComponents {
-        total: zero(w, h),
-        single: zero(w, h),
-        multiple: zero(w, h),
-        emission: zero(w, h),
-        background: zero(w, h),
+        total: Image::zeros(w, h),
+        single: Image::zeros(w, h),
+        multiple: Image::zeros(w, h),
+        emission: Image::zeros(w, h),
+        background: Image::zeros(w, h),
         renders: Vec::new(),
     };
     for (pass, part) in passes.into_iter().zip(parts) {
@@ -224,8 +208,8 @@ pub fn components_from_parts(
             Component::Emission => &mut out.emission,
             Component::Background => &mut out.background,
         };
-        add(target, &im);
-        add(&mut out.total, &im);
+        target.add_independent(&im);
+        out.total.add_independent(&im);
     }
     Ok(out)
 }

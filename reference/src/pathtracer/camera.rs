@@ -145,6 +145,25 @@ pub fn render_image_part(
 }
 
 impl Image {
+    /// A black `width`×`height` image with zero standard errors.
+    pub fn zeros(width: usize, height: usize) -> Self {
+        Image {
+            width,
+            height,
+            mean: vec![0.0; width * height],
+            stderr: vec![0.0; width * height],
+        }
+    }
+
+    /// Adds an independent estimate of the same pixels: means add, standard errors add in
+    /// quadrature.
+    pub fn add_independent(&mut self, other: &Image) {
+        for (p, (m, e)) in other.mean.iter().zip(&other.stderr).enumerate() {
+            self.mean[p] += m;
+            self.stderr[p] = self.stderr[p].hypot(*e);
+        }
+    }
+
     /// The image of a whole render from its joined per-batch sums ([`render_image_part`]).
     pub fn from_sums(
         width: usize,
