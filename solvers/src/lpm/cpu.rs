@@ -36,6 +36,9 @@ pub struct CpuLpm<T> {
     pub(super) source: Vec<T>,
     /// Slabs per slice (D19; ≥ the longest axis: not streamed).
     slabs: usize,
+    /// Whether an f32 sweep may use the AVX-512 kernel where the CPU has it (set by
+    /// [`CpuLpm::new`]; clear it to force the 8-lane kernel, e.g. to compare the two).
+    pub wide: bool,
 }
 
 /// (E, φ1, φ2) of optical depth τ: E = e^{−τ}, φ1 = (1 − E)/τ, φ2 = (τ − 1 + E)/τ² (spec
@@ -179,7 +182,14 @@ pub fn segment<T: Real>(l_in: T, u: T, st: T, s: T, ts: T) -> (T, T) {
 // The padding copies are element loops on purpose (see the comment there).
 #[allow(clippy::manual_memcpy)]
 #[inline(always)]
-fn transport_row<T: Real>(rays: &mut [T], u: &[T], st: &[T], g: &mut [T], s: T, ts: T) {
+fn transport_row<T: Real, const L: usize>(
+    rays: &mut [T],
+    u: &[T],
+    st: &[T],
+    g: &mut [T],
+    s: T,
+    ts: T,
+) {
     let n = rays.len();
     let (u, st, g) = (&u[..n], &st[..n], &mut g[..n]);
     if !is_f32::<T>() {
@@ -190,25 +200,25 @@ fn transport_row<T: Real>(rays: &mut [T], u: &[T], st: &[T], g: &mut [T], s: T, 
         }
         return;
     }
-    let full = n - n % LANES;
+    let full = n - n % L;
     let (rays_b, rays_r) = rays.split_at_mut(full);
     let (u_b, u_r) = u.split_at(full);
     let (st_b, st_r) = st.split_at(full);
     let (g_b, g_r) = g.split_at_mut(full);
     for (((l, u), st), g) in rays_b
-        .chunks_exact_mut(LANES)
-        .zip(u_b.chunks_exact(LANES))
-        .zip(st_b.chunks_exact(LANES))
-        .zip(g_b.chunks_exact_mut(LANES))
+        .chunks_exact_mut(L)
+        .zip(u_b.chunks_exact(L))
+        .zip(st_b.chunks_exact(L))
+        .zip(g_b.chunks_exact_mut(L))
     {
-        transport_block(l, u, st, g, s, ts);
+        transport_block::<T, L>(l, u, st, g, s, ts);
     }
     let r = rays_r.len();
     if r > 0 {
-        let mut l = [T::zero(); LANES];
-        let mut uu = [T::zero(); LANES];
-        let mut ss = [T::zero(); LANES];
-        let mut gg = [T::zero(); LANES];
+        let mut l = [T::zero(); L];
+        let mut uu = [T::zero(); L];
+        let mut ss = [T::zero(); L];
+        let mut gg = [T::zero(); L];
         // Element loops, not `copy_from_slice`: a memcpy call per ≤ 7 words cost 4 % of
         // the solve.
         for j in 0..r {
@@ -217,7 +227,7 @@ fn transport_row<T: Real>(rays: &mut [T], u: &[T], st: &[T], g: &mut [T], s: T, 
             ss[j] = st_r[j];
             gg[j] = g_r[j];
         }
-        transport_block(&mut l, &uu, &ss, &mut gg, s, ts);
+        transport_block::<T, L>(&mut l, &uu, &ss, &mut gg, s, ts);
         for j in 0..r {
             rays_r[j] = l[j];
             g_r[j] = gg[j];
@@ -228,17 +238,22 @@ fn transport_row<T: Real>(rays: &mut [T], u: &[T], st: &[T], g: &mut [T], s: T, 
 /// Rays per block of [`transport_row`]: one AVX2 register of f32.
 const LANES: usize = 8;
 
+/// Rays per block of the AVX-512 sweep: one 512-bit register of f32.
+pub const WIDE_LANES: usize = 16;
+
 /// [`segment`] over exactly [`LANES`] rays (a fixed trip count, so LLVM emits one straight
 /// vector body with no epilogue).
 #[inline(always)]
-fn transport_block<T: Real>(rays: &mut [T], u: &[T], st: &[T], g: &mut [T], s: T, ts: T) {
-    let (rays, u, st, g) = (
-        &mut rays[..LANES],
-        &u[..LANES],
-        &st[..LANES],
-        &mut g[..LANES],
-    );
-    for j in 0..LANES {
+fn transport_block<T: Real, const L: usize>(
+    rays: &mut [T],
+    u: &[T],
+    st: &[T],
+    g: &mut [T],
+    s: T,
+    ts: T,
+) {
+    let (rays, u, st, g) = (&mut rays[..L], &u[..L], &st[..L], &mut g[..L]);
+    for j in 0..L {
         let (l_out, int) = segment(rays[j], u[j], st[j], s, ts);
         g[j] = g[j] + int;
         rays[j] = l_out;
@@ -253,8 +268,14 @@ struct SweepTally {
     exited: f64,
 }
 
-/// One direction's rays between slices: radiance per ray (lattice order), the last
-/// sub-segment's lateral offsets (for the wrap events), the re-entry radiance and the tally.
+/// One direction's rays between slices: radiance per ray, the last sub-segment's lateral
+/// offsets (for the wrap events), the re-entry radiance and the tally.
+///
+/// A row's rays (fixed c) are stored by the voxel column b they are in, not by their lattice
+/// index (lattice ray r is in column (r + o_b) mod n_b): a row of rays then lines up with a
+/// row of voxels, so the sweep runs it as one slice, not two split at the wrap (with
+/// blocks of 8 rays the split left 2 padded blocks per row; the rows rotate by one when
+/// o_b changes, at most once per slab). The rows themselves stay in lattice order.
 #[derive(Debug, Clone)]
 struct RayState<T> {
     ray: Vec<T>,
@@ -307,6 +328,7 @@ impl<T: Real> CpuLpm<T> {
             sigma_s,
             source: medium.emission.iter().map(|&j| j / four_pi).collect(),
             slabs,
+            wide: true,
         })
     }
 
@@ -398,8 +420,54 @@ impl<T: Real> CpuLpm<T> {
     /// paper's deposit into `paper`), both in the slice layout b + n_b(c + n_c(z − z0)).
     /// The ray state is left for the next slice; the summation order per voxel does not
     /// depend on the slicing.
-    #[allow(clippy::too_many_arguments)]
+    ///
+    /// In f32 on an x86-64 CPU with AVX-512F (and [`CpuLpm::wide`] set) the sweep runs a
+    /// copy compiled for AVX-512 with blocks of 16 rays ([`WIDE_LANES`]); elsewhere the
+    /// build's own code with blocks of 8. Each ray does the same IEEE operations in the same
+    /// order in both, so the results are bitwise equal (test `wide_kernel_bitwise`).
     fn sweep_slabs(
+        &self,
+        i: usize,
+        u_src: &[T],
+        slice: (usize, usize),
+        st: &mut RayState<T>,
+        g: &mut [T],
+        paper: Option<&mut [T]>,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide && is_f32::<T>() && std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F, checked just above.
+            #[allow(unsafe_code)]
+            unsafe {
+                self.sweep_slabs_avx512(i, u_src, slice, st, g, paper)
+            };
+            return;
+        }
+        self.sweep_slabs_with::<LANES>(i, u_src, slice, st, g, paper);
+    }
+
+    /// [`Self::sweep_slabs`] compiled for AVX-512F, blocks of [`WIDE_LANES`].
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    #[allow(unsafe_code)]
+    unsafe fn sweep_slabs_avx512(
+        &self,
+        i: usize,
+        u_src: &[T],
+        slice: (usize, usize),
+        st: &mut RayState<T>,
+        g: &mut [T],
+        paper: Option<&mut [T]>,
+    ) {
+        self.sweep_slabs_with::<WIDE_LANES>(i, u_src, slice, st, g, paper);
+    }
+
+    /// [`Self::sweep_slabs`] with f32 blocks of `L` rays.
+    #[inline(always)]
+    fn sweep_slabs_with<const L: usize>(
         &self,
         i: usize,
         u_src: &[T],
@@ -432,18 +500,24 @@ impl<T: Real> CpuLpm<T> {
             let slab = if sign > 0 { z } else { na - 1 - z };
             let tz = (z - z0) * nb * nc;
             for seg in table.slab(z) {
-                let ob = seg.offset[0].rem_euclid(nb as i64) as usize;
                 let oc = seg.offset[1].rem_euclid(nc as i64) as usize;
-                let wb = seg.offset[0] != prev[0];
+                let db = seg.offset[0] - prev[0];
                 let wc = seg.offset[1] != prev[1];
+                // The rays are stored by the voxel column they are in (see `RayState`): when
+                // the lattice moves along b, every row rotates with it.
+                if db != 0 {
+                    let k = db.rem_euclid(nb as i64) as usize;
+                    for row in ray.chunks_exact_mut(nb) {
+                        row.rotate_right(k);
+                    }
+                }
                 if let Some(re) = reentry {
                     // Rays that just crossed a side face leave (A) and re-enter (B), Fig 2.
-                    let mut rb = usize::MAX;
-                    if wb {
-                        let xb = if seg.offset[0] > prev[0] { 0 } else { nb - 1 };
-                        rb = (xb + nb - ob) % nb;
+                    let mut xb = usize::MAX;
+                    if db != 0 {
+                        xb = if db > 0 { 0 } else { nb - 1 };
                         for s in 0..nc {
-                            let l = &mut ray[rb + nb * s];
+                            let l = &mut ray[xb + nb * s];
                             tally.exited += l.f();
                             *l = re;
                             tally.injected += re.f();
@@ -452,8 +526,8 @@ impl<T: Real> CpuLpm<T> {
                     if wc {
                         let yc = if seg.offset[1] > prev[1] { 0 } else { nc - 1 };
                         let s = (yc + nc - oc) % nc;
-                        for r in (0..nb).filter(|&r| r != rb) {
-                            let l = &mut ray[r + nb * s];
+                        for x in (0..nb).filter(|&x| x != xb) {
+                            let l = &mut ray[x + nb * s];
                             tally.exited += l.f();
                             *l = re;
                             tally.injected += re.f();
@@ -464,29 +538,27 @@ impl<T: Real> CpuLpm<T> {
                 let len = T::c(seg.len * scale);
                 for yc in 0..nc {
                     let s = (yc + nc - oc) % nc;
-                    let rays = &mut ray[nb * s..nb * (s + 1)];
-                    let base = slab * sa + yc * sc;
-                    let tbase = tz + yc * nb;
-                    let (head, tail) = rays.split_at_mut(nb - ob);
-                    for (run, v0, t0) in [(head, base + ob * sb, tbase + ob), (tail, base, tbase)] {
-                        let w = run.len();
-                        if let (true, Some(p)) = (paper_deposit, paper.as_deref_mut()) {
-                            let ss = &sigma_s[v0..v0 + w];
-                            for ((l, p), &ss) in run.iter().zip(&mut p[t0..t0 + w]).zip(ss) {
-                                *p = *p - *l * (-(ss * len)).exp_m1();
-                            }
+                    let run = &mut ray[nb * s..nb * (s + 1)];
+                    let v0 = slab * sa + yc * sc;
+                    let t0 = tz + yc * nb;
+                    let w = nb;
+                    if let (true, Some(p)) = (paper_deposit, paper.as_deref_mut()) {
+                        let ss = &sigma_s[v0..v0 + w];
+                        for ((l, p), &ss) in run.iter().zip(&mut p[t0..t0 + w]).zip(ss) {
+                            *p = *p - *l * (-(ss * len)).exp_m1();
                         }
-                        // The lateral stride is 1 in every layout (asserted above), so a row
-                        // is four contiguous slices: no bounds checks, vectorisable.
-                        transport_row(
-                            run,
-                            &u_src[v0..v0 + w],
-                            &sigma_t[v0..v0 + w],
-                            &mut g[t0..t0 + w],
-                            len,
-                            ts,
-                        );
                     }
+                    // The lateral stride is 1 in every layout (asserted above) and the rays
+                    // are stored by column, so a row is four whole contiguous slices: no
+                    // bounds checks, no split at the wrap, vectorisable.
+                    transport_row::<T, L>(
+                        run,
+                        &u_src[v0..v0 + w],
+                        &sigma_t[v0..v0 + w],
+                        &mut g[t0..t0 + w],
+                        len,
+                        ts,
+                    );
                 }
             }
         }
@@ -528,7 +600,16 @@ impl<T: Real> CpuLpm<T> {
     /// The radiances leaving the far face of direction `i` in a single order-0 sweep with
     /// boundary radiance `l_bc` and no source (test T4), in lattice order.
     pub fn exit_radiance(&self, i: usize, l_bc: f64) -> Vec<T> {
-        self.sweep_whole(i, l_bc).0.ray
+        let st = self.sweep_whole(i, l_bc).0;
+        let (b, _) = lateral_axes(self.dirs.dirs[i].face / 2);
+        let nb = self.grid.n[b];
+        // Stored by column: lattice ray r of a row is in column (r + o_b) mod n_b.
+        let ob = st.prev[0].rem_euclid(nb as i64) as usize;
+        let mut ray = st.ray;
+        for row in ray.chunks_exact_mut(nb) {
+            row.rotate_left(ob);
+        }
+        ray
     }
 
     /// Σ A·∫L ds per voxel for direction `i` divided by h³, in one order-0 sweep of a unit
@@ -572,6 +653,9 @@ impl<T: Real> CpuLpm<T> {
             .collect();
         let mut phi = vec![T::zero(); nv];
         let mut phi_orders: Vec<Vec<T>> = Vec::new();
+        // The x faces' unshot U in their layout, then the scratch of the transposes back
+        // (transient: the formula's `rays` counts it).
+        let mut xbuf = vec![T::zero(); nv];
         let h3 = self.grid.dl.powi(3);
         let n = self.grid.n;
         for order in 0..orders.max_orders {
@@ -580,15 +664,21 @@ impl<T: Real> CpuLpm<T> {
             }
             let mut phi_p = vec![T::zero(); nv];
             let mut tally = OrderTally::default();
-            for (face, u_global) in u_prev.iter().enumerate() {
+            // The x faces (0 and 1, the first two) collect into the outputs in their layout
+            // (see `collect`): I holds earlier orders, so it goes there first; everything
+            // goes back after face 1. Transposes are exact, so per voxel the arithmetic is
+            // that of collecting in the grid layout.
+            for b in &mut intensity {
+                to_x_layout_into(&self.grid, b, &mut xbuf);
+                std::mem::swap(b, &mut xbuf);
+            }
+            for face in 0..6 {
+                let u_global = &u_prev[face];
                 let sum_u: f64 = u_global.iter().map(|x| x.f()).sum();
-                let u_x;
-                let u_src: &[T] = if face / 2 == 0 {
-                    u_x = to_x_layout(&self.grid, u_global);
-                    &u_x
-                } else {
-                    u_global
-                };
+                if face / 2 == 0 {
+                    to_x_layout_into(&self.grid, u_global, &mut xbuf);
+                }
+                let u_src: &[T] = if face / 2 == 0 { &xbuf } else { u_global };
                 let dirs0 = face * per;
                 let na = n[face / 2];
                 let step = self.slabs.min(na);
@@ -596,9 +686,9 @@ impl<T: Real> CpuLpm<T> {
                     let i = dirs0 + k;
                     lane.rays = Some(self.start_rays(i, boundary.radiance[i], order));
                 }
-                // The collect's running (deposited, absorbed) per row of x, summed in sweep
-                // order along the row, so the tallies do not depend on the slicing either.
-                let mut rows = vec![(0.0f64, 0.0f64); n[1] * n[2]];
+                // The collect's (deposited, absorbed) per (sweep step, chunk), folded in that
+                // order after the face: the tallies do not depend on the slicing either.
+                let mut parts = vec![(0.0f64, 0.0f64); na * collect_chunks(face, &self.grid)];
                 for z0 in (0..na).step_by(step) {
                     let z1 = (z0 + step).min(na);
                     let len = (z1 - z0) * self.grid.len() / na;
@@ -620,7 +710,7 @@ impl<T: Real> CpuLpm<T> {
                         (z0, z1),
                         &lanes,
                         (&mut u_cur, &mut intensity, &mut phi_p),
-                        &mut rows,
+                        &mut parts,
                     );
                 }
                 for (k, lane) in lanes.iter_mut().enumerate() {
@@ -633,11 +723,18 @@ impl<T: Real> CpuLpm<T> {
                     tally.emitted +=
                         w * self.grid.dl * self.path_factor(i) / self.dirs.dirs[i].cos_axis * sum_u;
                 }
-                let (dep, abs) = rows
+                let (dep, abs) = parts
                     .iter()
                     .fold((0.0, 0.0), |acc, p| (acc.0 + p.0, acc.1 + p.1));
                 tally.scattered += dep * h3;
                 tally.absorbed += abs * h3;
+                if face == 1 {
+                    let outputs = u_cur.iter_mut().chain(&mut intensity);
+                    for b in outputs.chain(std::iter::once(&mut phi_p)) {
+                        from_x_layout(&self.grid, b, &mut xbuf);
+                        std::mem::swap(b, &mut xbuf);
+                    }
+                }
             }
             std::mem::swap(&mut u_prev, &mut u_cur);
             for (t, p) in phi.iter_mut().zip(&phi_p) {
@@ -687,27 +784,28 @@ impl<T: Real> CpuLpm<T> {
 
     /// The collect step of LPM Eq 4 for the m² directions of `face` over the slice of sweep
     /// steps `z0..z1` (T in `lanes`, slice layout): U^{d′} and I get A·F^{i,d′}·T^i/(h³|Ω^{d′}|),
-    /// the order's fluence Σ_i |Ω^i|A∫L ds/h³. Adds the deposited Σ_d′ ΔU^{d′}|Ω^{d′}| and
-    /// the absorbed σa Δφ (both per h³) of each voxel to its row's running sums in `rows`
-    /// (rows of x, index y + n_y z), voxel by voxel in sweep order.
+    /// the order's fluence Σ_i |Ω^i|A∫L ds/h³. The deposited Σ_d′ ΔU^{d′}|Ω^{d′}| and the
+    /// absorbed σa Δφ (both per h³) go to `parts`, one sum per (sweep step, chunk) of
+    /// [`collect_chunks`], over the step's voxels in slice order.
     ///
-    /// One task per z plane of the grid (it owns the plane's n_x·n_y outputs and its n_y
-    /// rows). Within a plane the voxels go in runs that are contiguous in the slice layout:
-    /// rows of x for the y and z faces, rows of y at each x in sweep order for the x faces
-    /// (whose slice is x-slowest), so every T read is a contiguous, vectorised load and only
-    /// the x faces' output writes are strided (by n_x). Reading the x faces' T along x
-    /// instead (stride n_y·n_z, a gather per word) made the collect 33 % of a 64³ RGB solve.
+    /// The outputs are in the x faces' layout ([`to_x_layout`]) for the x faces, in the
+    /// grid layout otherwise, so that T and the outputs run along memory together: tasks own
+    /// an x plane (x faces), a chunk of [`COLLECT_PLANES`] z planes (y faces: T is contiguous
+    /// over the chunk's rows within a slab) or a z plane (z faces), and take their slabs'
+    /// runs in sweep order. Reading the x faces' T along x instead (stride n_y·n_z) made the
+    /// collect 33 % of a 64³ RGB solve; writing their outputs with stride n_x cost the x
+    /// faces' collect 1.7× the z faces' (A/B at 128³).
     ///
     /// Per voxel the sum over the directions runs k = 0, 1, … from zero whatever the slicing,
-    /// so the fields are bitwise those of the unstreamed solve (T16); the tallies too, since a
-    /// row's voxels are added in sweep order and the rows are folded in row order.
+    /// so the fields are bitwise those of the unstreamed solve (T16); the tallies too, since
+    /// the parts are fixed by the grid and folded in a fixed order.
     fn collect(
         &self,
         face: usize,
         (z0, z1): (usize, usize),
         lanes: &[Lane<T>],
         (u_cur, intensity, phi_p): (&mut [Vec<T>], &mut [Vec<T>], &mut [T]),
-        rows: &mut [(f64, f64)],
+        parts: &mut [(f64, f64)],
     ) {
         let per = self.dirs.per_face();
         let h3 = self.grid.dl.powi(3);
@@ -733,152 +831,268 @@ impl<T: Real> CpuLpm<T> {
         let a = face / 2;
         let forward = face % 2 == 0;
         let na = self.grid.n[a];
-        // The slice's slabs [lo, hi) in grid coordinates of axis a, and a grid slab's index
-        // within the slice (its sweep step − z0).
+        // The slice's slabs [lo, hi) in grid coordinates of axis a; grid slab g is the
+        // slice's sweep step `local(g)`.
         let (lo, hi) = if forward {
             (z0, z1)
         } else {
             (na - z1, na - z0)
         };
-        let local = |slab: usize| {
-            if forward {
-                slab - z0
-            } else {
-                na - 1 - slab - z0
-            }
+        let local = |g: usize| if forward { g - z0 } else { na - 1 - g - z0 };
+        // Each task's output slices (6 U, D_I of I, φ^p), as chunks of `chunk` voxels of the
+        // output layout: x planes (x faces), COLLECT_PLANES z planes (y), z planes (z).
+        let chunk = match a {
+            0 => ny * nz,
+            1 => nx * ny * COLLECT_PLANES,
+            _ => nx * ny,
         };
-        // Each z plane's output slices (6 U, I, φ^p) and rows, only the planes that meet the
-        // slice.
-        let plane = nx * ny;
         let mut iters: Vec<std::slice::ChunksMut<'_, T>> = u_cur
             .iter_mut()
             .chain(intensity.iter_mut())
-            .map(|b| b.chunks_mut(plane))
+            .map(|b| b.chunks_mut(chunk))
             .collect();
-        iters.push(phi_p.chunks_mut(plane));
+        iters.push(phi_p.chunks_mut(chunk));
         let mut tasks = Vec::new();
-        for (z, part) in rows.chunks_mut(ny).enumerate() {
+        for ci in 0.. {
             let sl: Vec<&mut [T]> = iters.iter_mut().filter_map(|it| it.next()).collect();
-            if a != 2 || (lo..hi).contains(&z) {
-                tasks.push((z, sl, part));
+            if sl.is_empty() {
+                break;
+            }
+            if a == 1 || (lo..hi).contains(&ci) {
+                tasks.push((ci, sl));
             }
         }
+        let (sigma_t_x, sigma_s_x) = (&self.sigma_t_x[..], &self.sigma_s_x[..]);
         let ctx = CollectCtx {
             lanes,
             wu: &wu,
             wphi: &wphi,
             paper,
             d_i,
+            wide: self.wide,
         };
-        tasks.into_par_iter().for_each(|(z, mut sl, part)| {
-            let v0 = plane * z;
-            let (st, ss) = (&self.sigma_t[v0..v0 + plane], &self.sigma_s[v0..v0 + plane]);
-            match a {
-                0 => {
-                    // Runs of y at each x of the slice, in sweep order; voxel j of a run is
-                    // (x, y0 + j): output x + n_x(y0 + j), row y0 + j.
-                    for s in 0..hi - lo {
-                        let x = if forward { lo + s } else { hi - 1 - s };
-                        let t0 = ny * (z + nz * local(x));
-                        for y0 in (0..ny).step_by(COLLECT_BLOCK) {
-                            let w = COLLECT_BLOCK.min(ny - y0);
-                            let run = Run {
-                                t0: t0 + y0,
-                                w,
-                                out: x + nx * y0,
-                                stride: nx,
-                            };
-                            ctx.block(&run, &mut sl, (st, ss), (&mut part[y0..], 1));
-                        }
+        let nchunks = collect_chunks(face, &self.grid);
+        let done: Vec<Vec<(usize, (f64, f64))>> = tasks
+            .into_par_iter()
+            .map(|(ci, mut sl)| {
+                let len = sl[0].len();
+                let m0 = chunk * ci;
+                let media = if a == 0 {
+                    (&sigma_t_x[m0..m0 + len], &sigma_s_x[m0..m0 + len])
+                } else {
+                    (&self.sigma_t[m0..m0 + len], &self.sigma_s[m0..m0 + len])
+                };
+                // (part index, run) per slab of the slice the task meets, in sweep order.
+                let runs: Vec<(usize, Run)> = match a {
+                    0 => vec![(
+                        z0 + local(ci),
+                        Run {
+                            t0: ny * nz * local(ci),
+                            len,
+                            nb: len,
+                            o: [1, 0, 0],
+                        },
+                    )],
+                    1 => {
+                        let planes = len / (nx * ny);
+                        (0..hi - lo)
+                            .map(|s| {
+                                let g = if forward { lo + s } else { hi - 1 - s };
+                                let run = Run {
+                                    t0: nx * (COLLECT_PLANES * ci + nz * s),
+                                    len: nx * planes,
+                                    nb: nx,
+                                    o: [1, nx * ny, nx * g],
+                                };
+                                ((z0 + s) * nchunks + ci, run)
+                            })
+                            .collect()
                     }
-                }
-                _ => {
-                    // Rows of x (whole rows: one row's voxels in x order, its sweep order).
-                    let ys = if a == 1 { lo..hi } else { 0..ny };
-                    for y in ys {
-                        let t0 = if a == 1 {
-                            nx * (z + nz * local(y))
-                        } else {
-                            nx * (y + ny * local(z))
-                        };
-                        for x0 in (0..nx).step_by(COLLECT_BLOCK) {
-                            let w = COLLECT_BLOCK.min(nx - x0);
-                            let run = Run {
-                                t0: t0 + x0,
-                                w,
-                                out: x0 + nx * y,
-                                stride: 1,
-                            };
-                            ctx.block(&run, &mut sl, (st, ss), (&mut part[y..=y], 0));
-                        }
-                    }
-                }
-            }
-        });
+                    _ => vec![(
+                        z0 + local(ci),
+                        Run {
+                            t0: nx * ny * local(ci),
+                            len,
+                            nb: len,
+                            o: [1, 0, 0],
+                        },
+                    )],
+                };
+                runs.into_iter()
+                    .map(|(key, run)| (key, ctx.run(&run, &mut sl, media)))
+                    .collect()
+            })
+            .collect();
+        for (key, part) in done.into_iter().flatten() {
+            parts[key] = part;
+        }
     }
 }
 
-/// Voxels per run of the collect: its seven sums (six cones and φ) stay in L1 while the m²
-/// T rows stream past.
-const COLLECT_BLOCK: usize = 64;
-
-/// A run of the collect: `w` ≤ [`COLLECT_BLOCK`] voxels contiguous in the slice layout from
-/// `t0`, at `out + j·stride` in the z plane's outputs (and its medium).
-struct Run {
-    t0: usize,
-    w: usize,
-    out: usize,
-    stride: usize,
+/// Chunks per sweep step of [`CpuLpm::collect`]'s parts on `face`: the y faces' tasks each
+/// take COLLECT_PLANES z planes of a slab, the others a whole slab.
+fn collect_chunks(face: usize, grid: &Grid) -> usize {
+    if face / 2 == 1 {
+        grid.n[2].div_ceil(COLLECT_PLANES)
+    } else {
+        1
+    }
 }
 
-/// What [`CollectCtx::block`] reads besides the run: a face's T (and the paper's deposit)
+/// z planes per task of the y faces' collect: their T is contiguous over the chunk's rows
+/// within a slab, so the m² T streams run COLLECT_PLANES rows before they jump (a task per
+/// plane, a jump per row, made the collect latency-bound).
+const COLLECT_PLANES: usize = 4;
+
+/// One slab's range of the collect: `len` T entries contiguous from `t0`; entry j is the
+/// lateral (b, c) = (j mod `nb`, j div `nb`), at output index o₀b + o₁c + o₂ of the task's
+/// chunk (and its medium).
+struct Run {
+    t0: usize,
+    len: usize,
+    nb: usize,
+    o: [usize; 3],
+}
+
+/// Lanes of the collect's tally partial sums (voxel j of a run goes to lane j mod 16,
+/// whatever the vector width, so the tallies do not depend on it).
+const TALLY_LANES: usize = 16;
+
+/// What [`CollectCtx::run`] reads besides the run: a face's T (and the paper's deposit)
 /// per direction, the weights A·F/(h³|Ω^{d′}|) per direction and cone and A|Ω^i|/h³ per
-/// direction, and D_I.
+/// direction, D_I and whether the AVX-512 kernel may run.
 struct CollectCtx<'a, T> {
     lanes: &'a [Lane<T>],
     wu: &'a [[T; CONES]],
     wphi: &'a [T],
     paper: bool,
     d_i: usize,
+    wide: bool,
 }
 
 impl<T: Real> CollectCtx<'_, T> {
-    /// The collect of one run into the z plane's outputs `sl` (six U cones, the D_I
-    /// buffers of I, φ^p) with the plane's medium (σt, σs); voxel j's deposited and
-    /// absorbed power go to the row sums `rows[j·rstride]`, in run order.
-    // One index addresses the sums and every output slice at once.
-    #[allow(clippy::needless_range_loop)]
+    /// The collect of one run into a task's outputs `sl` (six U cones, the D_I buffers of
+    /// I, φ^p) with its medium (σt, σs): the run's (deposited, absorbed) sums. In f32 on a
+    /// CPU with AVX-512F (and [`CpuLpm::wide`]) compiled for it, with blocks of
+    /// [`WIDE_LANES`] voxels; elsewhere blocks of [`LANES`]. Per voxel the same operations
+    /// in the same order either way, and the same sums.
+    fn run(&self, run: &Run, sl: &mut [&mut [T]], media: (&[T], &[T])) -> (f64, f64) {
+        #[cfg(target_arch = "x86_64")]
+        if self.wide && is_f32::<T>() && std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F, checked just above.
+            #[allow(unsafe_code)]
+            return unsafe { self.run_avx512(run, sl, media) };
+        }
+        self.run_with::<LANES>(run, sl, media)
+    }
+
+    /// [`Self::run`] compiled for AVX-512F.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    #[allow(unsafe_code)]
+    unsafe fn run_avx512(&self, run: &Run, sl: &mut [&mut [T]], media: (&[T], &[T])) -> (f64, f64) {
+        self.run_with::<WIDE_LANES>(run, sl, media)
+    }
+
+    /// [`Self::run`] in blocks of `L` voxels.
     #[inline(always)]
-    fn block(
+    fn run_with<const L: usize>(
         &self,
         run: &Run,
         sl: &mut [&mut [T]],
+        media: (&[T], &[T]),
+    ) -> (f64, f64) {
+        let mut sums = ([0.0f64; TALLY_LANES], [0.0f64; TALLY_LANES]);
+        for j0 in (0..run.len).step_by(L) {
+            self.block::<L>(run, j0, sl, media, &mut sums);
+        }
+        let fold = |v: &[f64]| v.iter().fold(0.0, |a, &x| a + x);
+        (fold(&sums.0), fold(&sums.1))
+    }
+
+    /// The collect of the ≤ `L` entries of `run` from `j0`: the seven sums (six cones and
+    /// φ) of the block are `L`-lane registers while the m² directions' T stream past
+    /// (direction-inner: per voxel k = 0, 1, … in order, each a fused a + w·T); then each
+    /// voxel's outputs, and its deposited and absorbed power added to the tally lane of its
+    /// run position. A block on one contiguous stretch of outputs writes them as vectors,
+    /// others voxel by voxel (same operations); a last partial block is padded with zeros.
+    // One index addresses the sums and every output slice at once.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    fn block<const L: usize>(
+        &self,
+        run: &Run,
+        j0: usize,
+        sl: &mut [&mut [T]],
         (st, ss): (&[T], &[T]),
-        (rows, rstride): (&mut [(f64, f64)], usize),
+        (deps, abss): &mut ([f64; TALLY_LANES], [f64; TALLY_LANES]),
     ) {
-        let w = run.w;
-        let r = run.t0..run.t0 + w;
-        let mut acc = [[T::zero(); COLLECT_BLOCK]; CONES];
-        let mut fls = [T::zero(); COLLECT_BLOCK];
-        // Direction-outer over the run, per voxel still summed k = 0, 1, … (the voxel-outer
-        // order, so bit-identical): contiguous loads, every loop vectorises.
+        let w = L.min(run.len - j0);
+        let t = run.t0 + j0;
+        let mut acc = [[T::zero(); L]; CONES];
+        let mut fls = [T::zero(); L];
         for (k, lane) in self.lanes.iter().enumerate() {
-            let gk = &lane.g[r.clone()];
-            let src = if self.paper { &lane.p[r.clone()] } else { gk };
-            let wk = self.wphi[k];
-            for (f, &g) in fls[..w].iter_mut().zip(gk) {
-                *f = *f + wk * g;
-            }
-            for (a, &wd) in acc.iter_mut().zip(&self.wu[k]) {
-                for (a, &x) in a[..w].iter_mut().zip(src) {
-                    *a = *a + wd * x;
-                }
+            let src = if self.paper { &lane.p } else { &lane.g };
+            if w == L {
+                accumulate::<T, L>(
+                    &lane.g[t..t + L],
+                    &src[t..t + L],
+                    (self.wphi[k], &self.wu[k]),
+                    &mut fls,
+                    &mut acc,
+                );
+            } else {
+                let (mut gk, mut xk) = ([T::zero(); L], [T::zero(); L]);
+                gk[..w].copy_from_slice(&lane.g[t..t + w]);
+                xk[..w].copy_from_slice(&src[t..t + w]);
+                accumulate::<T, L>(&gk, &xk, (self.wphi[k], &self.wu[k]), &mut fls, &mut acc);
             }
         }
         let sixth = T::c(1.0 / 6.0);
         let d_i = self.d_i;
+        let (b0, c0) = (j0 % run.nb, j0 / run.nb);
+        let lane0 = j0 % TALLY_LANES;
+        let o0 = run.o[0] * b0 + run.o[1] * c0 + run.o[2];
+        if w == L && run.o[0] == 1 && b0 + L <= run.nb {
+            // One contiguous stretch: vector loads and stores.
+            let s = &ss[o0..o0 + L];
+            let mut total = [T::zero(); L];
+            for d in 0..CONES {
+                let mut du = acc[d];
+                if !self.paper {
+                    for j in 0..L {
+                        du[j] = s[j] * du[j];
+                    }
+                }
+                add_to(&mut sl[d][o0..o0 + L], &du);
+                if d_i == CONES {
+                    add_to(&mut sl[CONES + d][o0..o0 + L], &du);
+                }
+                for j in 0..L {
+                    total[j] = total[j] + du[j];
+                }
+            }
+            if d_i == 1 {
+                let mut t6 = total;
+                for t in &mut t6 {
+                    *t = *t * sixth;
+                }
+                add_to(&mut sl[CONES][o0..o0 + L], &t6);
+            }
+            add_to(&mut sl[CONES + d_i][o0..o0 + L], &fls);
+            for j in 0..L {
+                let q = (lane0 + j) % TALLY_LANES;
+                deps[q] += total[j].f() * CONE_SOLID_ANGLE;
+                abss[q] += (st[o0 + j] - s[j]).f() * fls[j].f();
+            }
+            return;
+        }
+        let (mut b, mut c) = (b0, c0);
         for j in 0..w {
-            let o = run.out + j * run.stride;
+            let o = run.o[0] * b + run.o[1] * c + run.o[2];
             let fl = fls[j];
             let s = ss[o];
             let mut total = T::zero();
@@ -894,26 +1108,74 @@ impl<T: Real> CollectCtx<'_, T> {
                 sl[CONES][o] = sl[CONES][o] + total * sixth;
             }
             sl[CONES + d_i][o] = sl[CONES + d_i][o] + fl;
-            let part = &mut rows[j * rstride];
-            part.0 += total.f() * CONE_SOLID_ANGLE;
-            part.1 += (st[o] - s).f() * fl.f();
+            let q = (lane0 + j) % TALLY_LANES;
+            deps[q] += total.f() * CONE_SOLID_ANGLE;
+            abss[q] += (st[o] - s).f() * fl.f();
+            b += 1;
+            if b == run.nb {
+                b = 0;
+                c += 1;
+            }
+        }
+    }
+}
+
+/// `out[j] += x[j]` over `L` values.
+#[inline(always)]
+fn add_to<T: Real, const L: usize>(out: &mut [T], x: &[T; L]) {
+    for (o, &x) in out[..L].iter_mut().zip(x) {
+        *o = *o + x;
+    }
+}
+
+/// One direction's share of a collect block: φ += w_φ·T and, per cone d, U_d += w_d·X (X = T,
+/// or the paper's deposit), over `L` voxels, fused ([`fmadd`]).
+#[inline(always)]
+fn accumulate<T: Real, const L: usize>(
+    g: &[T],
+    src: &[T],
+    (wphi, wu): (T, &[T; CONES]),
+    fls: &mut [T; L],
+    acc: &mut [[T; L]; CONES],
+) {
+    let (g, src) = (&g[..L], &src[..L]);
+    for j in 0..L {
+        fls[j] = fmadd(wphi, g[j], fls[j]);
+    }
+    for (a, &w) in acc.iter_mut().zip(wu) {
+        for j in 0..L {
+            a[j] = fmadd(w, src[j], a[j]);
         }
     }
 }
 
 /// `field` (x fastest) in the x-faces' layout y + n_y(z + n_z x), where the sweep axis x is
 /// slowest and the first lateral axis y contiguous.
-pub fn to_x_layout<T: Copy>(grid: &Grid, field: &[T]) -> Vec<T> {
+pub fn to_x_layout<T: Copy + Default>(grid: &Grid, field: &[T]) -> Vec<T> {
+    let mut out = vec![T::default(); field.len()];
+    to_x_layout_into(grid, field, &mut out);
+    out
+}
+
+/// [`to_x_layout`] into `out`, per z a tiled transpose of the n_x × n_y plane (the mirror
+/// of [`from_x_layout`]).
+pub fn to_x_layout_into<T: Copy>(grid: &Grid, field: &[T], out: &mut [T]) {
     let [nx, ny, nz] = grid.n;
-    let mut out = Vec::with_capacity(field.len());
-    for x in 0..nx {
-        for z in 0..nz {
-            for y in 0..ny {
-                out.push(field[x + nx * (y + ny * z)]);
+    let sx = ny * nz; // out's stride of x
+    for z in 0..nz {
+        for x0 in (0..nx).step_by(TILE) {
+            for y0 in (0..ny).step_by(TILE) {
+                let by = TILE.min(ny - y0);
+                for x in x0..(x0 + TILE).min(nx) {
+                    let dst = &mut out[y0 + ny * z + sx * x..][..by];
+                    let src = field[x + nx * (y0 + ny * z)..].iter().step_by(nx);
+                    for (o, &v) in dst.iter_mut().zip(src) {
+                        *o = v;
+                    }
+                }
             }
         }
     }
-    out
 }
 
 /// The inverse of [`to_x_layout`], into `out`: per z a transpose of the n_x × n_y plane in
