@@ -660,7 +660,7 @@ impl<T: Real> CpuLpm<T> {
         let n = self.grid.n;
         for order in 0..orders.max_orders {
             for u in &mut u_cur {
-                u.fill(T::zero());
+                u.par_iter_mut().for_each(|x| *x = T::zero());
             }
             let mut phi_p = vec![T::zero(); nv];
             let mut tally = OrderTally::default();
@@ -674,7 +674,7 @@ impl<T: Real> CpuLpm<T> {
             }
             for face in 0..6 {
                 let u_global = &u_prev[face];
-                let sum_u: f64 = u_global.iter().map(|x| x.f()).sum();
+                let sum_u = ordered_sum(u_global);
                 if face / 2 == 0 {
                     to_x_layout_into(&self.grid, u_global, &mut xbuf);
                 }
@@ -737,9 +737,9 @@ impl<T: Real> CpuLpm<T> {
                 }
             }
             std::mem::swap(&mut u_prev, &mut u_cur);
-            for (t, p) in phi.iter_mut().zip(&phi_p) {
-                *t = *t + *p;
-            }
+            phi.par_iter_mut()
+                .zip(&phi_p)
+                .for_each(|(t, p)| *t = *t + *p);
             if self.config.keep_orders {
                 phi_orders.push(phi_p);
             }
@@ -852,6 +852,13 @@ impl<T: Real> CpuLpm<T> {
             .map(|b| b.chunks_mut(chunk))
             .collect();
         iters.push(phi_p.chunks_mut(chunk));
+        // The x and z faces' planes go out in pieces of ≤ COLLECT_PIECE voxels (a slice of
+        // S slabs is S planes: S tasks alone would leave a core idle at odd S).
+        let piece = if a == 1 {
+            chunk
+        } else {
+            COLLECT_PIECE.min(chunk)
+        };
         let mut tasks = Vec::new();
         for ci in 0.. {
             let sl: Vec<&mut [T]> = iters.iter_mut().filter_map(|it| it.next()).collect();
@@ -859,7 +866,15 @@ impl<T: Real> CpuLpm<T> {
                 break;
             }
             if a == 1 || (lo..hi).contains(&ci) {
-                tasks.push((ci, sl));
+                let mut parts: Vec<std::slice::ChunksMut<'_, T>> =
+                    sl.into_iter().map(|b| b.chunks_mut(piece)).collect();
+                for pi in 0.. {
+                    let sub: Vec<&mut [T]> = parts.iter_mut().filter_map(|it| it.next()).collect();
+                    if sub.is_empty() {
+                        break;
+                    }
+                    tasks.push((ci, pi, sub));
+                }
             }
         }
         let (sigma_t_x, sigma_s_x) = (&self.sigma_t_x[..], &self.sigma_s_x[..]);
@@ -874,9 +889,9 @@ impl<T: Real> CpuLpm<T> {
         let nchunks = collect_chunks(face, &self.grid);
         let done: Vec<Vec<(usize, (f64, f64))>> = tasks
             .into_par_iter()
-            .map(|(ci, mut sl)| {
+            .map(|(ci, pi, mut sl)| {
                 let len = sl[0].len();
-                let m0 = chunk * ci;
+                let m0 = chunk * ci + piece * pi;
                 let media = if a == 0 {
                     (&sigma_t_x[m0..m0 + len], &sigma_s_x[m0..m0 + len])
                 } else {
@@ -885,9 +900,9 @@ impl<T: Real> CpuLpm<T> {
                 // (part index, run) per slab of the slice the task meets, in sweep order.
                 let runs: Vec<(usize, Run)> = match a {
                     0 => vec![(
-                        z0 + local(ci),
+                        (z0 + local(ci)) * nchunks + pi,
                         Run {
-                            t0: ny * nz * local(ci),
+                            t0: ny * nz * local(ci) + piece * pi,
                             len,
                             nb: len,
                             o: [1, 0, 0],
@@ -909,9 +924,9 @@ impl<T: Real> CpuLpm<T> {
                             .collect()
                     }
                     _ => vec![(
-                        z0 + local(ci),
+                        (z0 + local(ci)) * nchunks + pi,
                         Run {
-                            t0: nx * ny * local(ci),
+                            t0: nx * ny * local(ci) + piece * pi,
                             len,
                             nb: len,
                             o: [1, 0, 0],
@@ -930,14 +945,19 @@ impl<T: Real> CpuLpm<T> {
 }
 
 /// Chunks per sweep step of [`CpuLpm::collect`]'s parts on `face`: the y faces' tasks each
-/// take COLLECT_PLANES z planes of a slab, the others a whole slab.
+/// take COLLECT_PLANES z planes of a slab, the others a piece of ≤ [`COLLECT_PIECE`] voxels
+/// of a slab.
 fn collect_chunks(face: usize, grid: &Grid) -> usize {
-    if face / 2 == 1 {
-        grid.n[2].div_ceil(COLLECT_PLANES)
-    } else {
-        1
+    let [nx, ny, nz] = grid.n;
+    match face / 2 {
+        0 => (ny * nz).div_ceil(COLLECT_PIECE),
+        1 => nz.div_ceil(COLLECT_PLANES),
+        _ => (nx * ny).div_ceil(COLLECT_PIECE),
     }
 }
+
+/// Voxels per task of the x and z faces' collect (a plane is cut into pieces of this size).
+const COLLECT_PIECE: usize = 4096;
 
 /// z planes per task of the y faces' collect: their T is contiguous over the chunk's rows
 /// within a slab, so the m² T streams run COLLECT_PLANES rows before they jump (a task per
@@ -1151,53 +1171,72 @@ fn accumulate<T: Real, const L: usize>(
 
 /// `field` (x fastest) in the x-faces' layout y + n_y(z + n_z x), where the sweep axis x is
 /// slowest and the first lateral axis y contiguous.
-pub fn to_x_layout<T: Copy + Default>(grid: &Grid, field: &[T]) -> Vec<T> {
+pub fn to_x_layout<T: Copy + Default + Send + Sync>(grid: &Grid, field: &[T]) -> Vec<T> {
     let mut out = vec![T::default(); field.len()];
     to_x_layout_into(grid, field, &mut out);
     out
 }
 
-/// [`to_x_layout`] into `out`, per z a tiled transpose of the n_x × n_y plane (the mirror
-/// of [`from_x_layout`]).
-pub fn to_x_layout_into<T: Copy>(grid: &Grid, field: &[T], out: &mut [T]) {
+/// [`to_x_layout`] into `out`: tiled transposes of the n_x × n_y planes (the mirror of
+/// [`from_x_layout`]), in parallel over groups of [`TILE`] x planes of `out`.
+pub fn to_x_layout_into<T: Copy + Send + Sync>(grid: &Grid, field: &[T], out: &mut [T]) {
     let [nx, ny, nz] = grid.n;
     let sx = ny * nz; // out's stride of x
-    for z in 0..nz {
-        for x0 in (0..nx).step_by(TILE) {
-            for y0 in (0..ny).step_by(TILE) {
-                let by = TILE.min(ny - y0);
-                for x in x0..(x0 + TILE).min(nx) {
-                    let dst = &mut out[y0 + ny * z + sx * x..][..by];
-                    let src = field[x + nx * (y0 + ny * z)..].iter().step_by(nx);
-                    for (o, &v) in dst.iter_mut().zip(src) {
-                        *o = v;
+    out[..nx * sx]
+        .par_chunks_mut(TILE * sx)
+        .enumerate()
+        .for_each(|(xt, out)| {
+            let x0 = xt * TILE;
+            let x1 = (x0 + TILE).min(nx);
+            for z in 0..nz {
+                for y0 in (0..ny).step_by(TILE) {
+                    let by = TILE.min(ny - y0);
+                    for x in x0..x1 {
+                        let dst = &mut out[y0 + ny * z + sx * (x - x0)..][..by];
+                        let src = field[x + nx * (y0 + ny * z)..].iter().step_by(nx);
+                        for (o, &v) in dst.iter_mut().zip(src) {
+                            *o = v;
+                        }
                     }
                 }
             }
-        }
-    }
+        });
 }
 
 /// The inverse of [`to_x_layout`], into `out`: per z a transpose of the n_x × n_y plane in
 /// tiles of [`TILE`]², contiguous reads and writes of stride n_x (the plain triple loop,
-/// with a bounds check per word, was 12 % of a 64³ solve's profile, the tiles 6 %).
-pub fn from_x_layout<T: Copy>(grid: &Grid, local: &[T], out: &mut [T]) {
+/// with a bounds check per word, was 12 % of a 64³ solve's profile, the tiles 6 %), in
+/// parallel over the z planes.
+pub fn from_x_layout<T: Copy + Send + Sync>(grid: &Grid, local: &[T], out: &mut [T]) {
     let [nx, ny, nz] = grid.n;
     let sx = ny * nz; // local stride of x
-    for z in 0..nz {
-        for x0 in (0..nx).step_by(TILE) {
-            for y0 in (0..ny).step_by(TILE) {
-                let by = TILE.min(ny - y0);
-                for x in x0..(x0 + TILE).min(nx) {
-                    let src = &local[y0 + ny * z + sx * x..][..by];
-                    let dst = out[x + nx * (y0 + ny * z)..].iter_mut().step_by(nx);
-                    for (o, &v) in dst.zip(src) {
-                        *o = v;
+    out[..nx * ny * nz]
+        .par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(z, out)| {
+            for x0 in (0..nx).step_by(TILE) {
+                for y0 in (0..ny).step_by(TILE) {
+                    let by = TILE.min(ny - y0);
+                    for x in x0..(x0 + TILE).min(nx) {
+                        let src = &local[y0 + ny * z + sx * x..][..by];
+                        let dst = out[x + nx * y0..].iter_mut().step_by(nx);
+                        for (o, &v) in dst.zip(src) {
+                            *o = v;
+                        }
                     }
                 }
             }
-        }
-    }
+        });
+}
+
+/// Σ x in f64, in parallel: sums of fixed chunks of 2¹⁴ values folded in order, so the
+/// result does not depend on the thread count.
+fn ordered_sum<T: Real>(v: &[T]) -> f64 {
+    let parts: Vec<f64> = v
+        .par_chunks(1 << 14)
+        .map(|c| c.iter().map(|x| x.f()).sum::<f64>())
+        .collect();
+    parts.iter().sum()
 }
 
 /// Edge of the tiles of [`from_x_layout`].
