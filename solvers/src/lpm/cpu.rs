@@ -172,12 +172,12 @@ pub fn segment<T: Real>(l_in: T, u: T, st: T, s: T, ts: T) -> (T, T) {
 /// [`segment`] over one row of rays: `rays` (in and out), their voxels' unshot source `u`
 /// and extinction `st`, and their T, all with one sub-segment length `s`.
 ///
-/// In f32 the row runs in blocks of [`LANES`] and the last partial block is padded (σt = 0,
-/// so τ = 0) and run as a full one, so every sub-segment goes through the vector code: a
-/// plain loop left up to 7 rays of each run (a row is split in two runs at the wrap) to a
-/// scalar epilogue, 34 % of the sweep's samples at 64³. With the fused kernel the blocks
-/// save 12 % of a 64³ RGB solve (2.87 → 2.51 CPU-s, 1 thread, A/B). Each ray's arithmetic
-/// is unchanged (bit-identical). f64 keeps the plain
+/// In f32 the row runs in blocks of `L` ([`LANES`], or [`WIDE_LANES`] in the AVX-512 copy)
+/// and the last partial block is padded (σt = 0, so τ = 0) and run as a full one, so every
+/// sub-segment goes through the vector code: a plain loop left up to 7 rays of each run (a
+/// row was then split in two runs at the wrap) to a scalar epilogue, 34 % of the sweep's
+/// samples at 64³. With the fused kernel the blocks saved 12 % of a 64³ RGB solve
+/// (2.87 → 2.51 CPU-s, 1 thread, A/B). Each ray's arithmetic is unchanged (bit-identical). f64 keeps the plain
 /// loop (its libm `expm1` does not vectorise).
 // The padding copies are element loops on purpose (see the comment there).
 #[allow(clippy::manual_memcpy)]
@@ -241,8 +241,8 @@ const LANES: usize = 8;
 /// Rays per block of the AVX-512 sweep: one 512-bit register of f32.
 pub const WIDE_LANES: usize = 16;
 
-/// [`segment`] over exactly [`LANES`] rays (a fixed trip count, so LLVM emits one straight
-/// vector body with no epilogue).
+/// [`segment`] over exactly `L` rays (a fixed trip count, so LLVM emits one straight vector
+/// body with no epilogue).
 #[inline(always)]
 fn transport_block<T: Real, const L: usize>(
     rays: &mut [T],

@@ -150,8 +150,9 @@
 //!   6.4·10⁻⁷ (`t13_…`).
 //! * **Layout.** The x-faces sweep over copies of σt, σs and U in the layout
 //!   y + n_y(z + n_z x), so every sweep's rows are contiguous. T is in the slice layout
-//!   b + n_b(c + n_c(z − z0)) on every face (D19), so the x faces need no scratch T and no
-//!   transpose any more: the collect reads their T with the stride n_y n_z.
+//!   b + n_b(c + n_c(z − z0)) on every face (D19), so the x faces need no scratch T. Their
+//!   collect writes U, I and φ^p in that layout too (I is transposed there before face 0;
+//!   all go back after face 1, exactly), so T and the outputs run along memory together.
 //! * **Speed** (bench `benches/lpm.rs`, 64³, RGB f32 as three channel solves, 3 orders,
 //!   m = 5, 2 threads on a shared 2-core EPYC): 14.6 s (42.8 Mseg/s, 7.0·10⁷ sub-segments
 //!   per order and channel = 265 n³) before the x-layout change and 21.1 s after it in a run
@@ -209,6 +210,38 @@
 //!   per sub-segment at 2 vector ops per cycle, ≈ 0.9 ns at 3 GHz: the measured 0.85 ns is
 //!   at it, so of the 1.54 CPU-s of a 64³ RGB solve (6.3·10⁸ sub-segments) the kernel's
 //!   arithmetic is ≈ 0.54 and the rest is memory traffic and the collect.
+//! * **Third pass: rays by column, register-blocked collect, AVX-512 by detection, cache-sized
+//!   slices** (issue 16 acceptance 3). Idle 2-vCPU Intel Xeon (2.6 GHz, 48 KiB L1d and
+//!   2 MiB L2 per core, AVX-512 capable), 64³ and 128³ RGB f32, 3 orders, m = 5, the
+//!   bench's medium and light, wall seconds of the three channel solves (best of 3–5 for
+//!   64³, one for 128³), each step A/B on top of the previous one:
+//!
+//!   | step | 64³ | 128³ |
+//!   |---|---|---|
+//!   | after the streaming merge (`Whole`: the collect read the x faces' T with stride n_y n_z) | 1.49 (bench) | 23.4 (bench) |
+//!   | (a) collect per z plane in runs contiguous in the slice layout | 1.08 | 13.6 |
+//!   | (b) streaming S = 16 / 8 instead of `Whole` (T slice stays in cache) | 0.88 | 11.2 |
+//!   | (c) sweep and collect compiled for AVX-512 too (16-lane blocks), runtime detection | 0.87 | – |
+//!   | (d) rays stored by voxel column: a row is one slice, no split at the wrap | 0.70 | 9.26 |
+//!   | (e) collect: the 7 sums of a block of 8/16 voxels in registers over the 25 directions, fused | 0.59 | 8.26 |
+//!   | (f) x faces collect into outputs in their layout (contiguous writes) | 0.58 | 7.72 |
+//!   | (g) x and z faces' collect in pieces of 4096 voxels, transposes and sums in parallel | 0.55 | 7.39 |
+//!
+//!   (c) alone gave 8 %: the 16-lane blocks were a quarter padding while a 64-ray row was
+//!   split at the wrap in two runs; after (d) the wide kernel runs full blocks. The
+//!   AVX-512 copies are `#[target_feature(enable = "avx512f")]` functions called after
+//!   `is_x86_feature_detected!` (the workspace's one `unsafe`, allowed there only); each
+//!   ray and voxel does the same IEEE operations in the same order in both widths, so
+//!   results are bitwise equal (`wide_kernel_bitwise`, 23×13×18 with partial blocks,
+//!   streamed, paper formulas, six I). Tried and dropped: one T allocation for the 25
+//!   directions with a one-line skew between them (to put their streams on different L1
+//!   sets): 0.55 → 0.65 s at 64³, slower; a skew of 0 in one allocation: 0.57 s, no gain.
+//!   Streaming slices of S = 4 or fewer slabs: slower (0.97 s at 64³, S = 4, before (d)),
+//!   the per-slice synchronisation. [`CPU_SLICE_BYTES`] sets `Auto` between.
+//!   **Profile after** (`perf record`, 128³, S = 5): sweep 41 %, collect 38 %, serial
+//!   parts of `solve` 4 %, memset 4 % (T fills), the bench's noise setup 4 %. At 64³ the
+//!   sweep runs 2.0·10⁹ sub-segments per second on 2 cores, at 128³ 1.35·10⁹: its rows of
+//!   ray, U, σt and T (4 × 64 KiB at 128³) no longer fit L1 between a slab's sub-segments.
 //! * **D12 wrap.** `Open` (default) re-enters rays through a side face with the boundary
 //!   radiance at order 0 and 0 after; `Zero` is the paper's; `Periodic` carries the ray.
 //! * **D1 stopping.** [`Orders::Converge`] continues while the unshot power
@@ -223,10 +256,11 @@
 //!   axis is cut into slices of S slabs at full lateral extent; T (and the paper's deposit)
 //!   holds one slice per direction of the LPM, each direction's rays (radiance, last
 //!   sub-segment offsets, f64 tallies) are carried from slice to slice, and each slice is
-//!   collected before the next is swept. The collect runs per row of x (parallel over rows)
-//!   and sums the directions k = 0, 1, … from zero per voxel as before, and the deposited and
-//!   absorbed tallies are running sums per row in sweep order, folded in row order: the
-//!   fields *and* the tallies do not depend on S. Only T is sliced; σ, U, I and φ stay
+//!   collected before the next is swept. The collect sums the directions k = 0, 1, … from
+//!   zero per voxel as before, and the deposited and absorbed tallies are sums per (sweep
+//!   step, chunk of the step's voxels), each over its voxels in slice order in 16 lanes
+//!   fixed by position, folded in (step, chunk) order: the fields *and* the tallies do not
+//!   depend on S, the thread count or the vector width. Only T is sliced; σ, U, I and φ stay
 //!   resident (the paper also streams the volume to the device; not here). **T16**
 //!   (`t16_streamed_equals_unstreamed`): 20×13×18 white noise, environment + directional
 //!   light, S ∈ {1, 4, 16, 20} vs `Whole`, f32 and f64, open, zero and periodic wrap (the
