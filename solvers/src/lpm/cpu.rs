@@ -9,6 +9,7 @@ use super::{
     Area, BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, OrderTally, PathLength, StorageI,
     WrapBc,
 };
+use crate::scene::Phase;
 use crate::{Grid, Medium, Real, SolverError};
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -885,6 +886,9 @@ impl<T: Real> CpuLpm<T> {
             paper,
             d_i,
             wide: self.wide,
+            // The isotropic coarse F is |Ω^i||Ω^{d′}|/4π exactly and every cone has
+            // |Ω^{d′}| = 4π/6 (`PhaseMatrix::new`), so w_{k,d′} = w_φ,k/4π.
+            iso: (self.config.phase == Phase::Isotropic).then(|| T::c(1.0 / (4.0 * PI))),
         };
         let nchunks = collect_chunks(face, &self.grid);
         let done: Vec<Vec<(usize, (f64, f64))>> = tasks
@@ -988,6 +992,8 @@ struct CollectCtx<'a, T> {
     paper: bool,
     d_i: usize,
     wide: bool,
+    /// c with w_{k,d′} = c·w_φ,k for every k and d′ (the isotropic phase: c = 1/4π), if so.
+    iso: Option<T>,
 }
 
 impl<T: Real> CollectCtx<'_, T> {
@@ -1054,21 +1060,48 @@ impl<T: Real> CollectCtx<'_, T> {
         let t = run.t0 + j0;
         let mut acc = [[T::zero(); L]; CONES];
         let mut fls = [T::zero(); L];
-        for (k, lane) in self.lanes.iter().enumerate() {
-            let src = if self.paper { &lane.p } else { &lane.g };
-            if w == L {
-                accumulate::<T, L>(
-                    &lane.g[t..t + L],
-                    &src[t..t + L],
-                    (self.wphi[k], &self.wu[k]),
-                    &mut fls,
-                    &mut acc,
-                );
-            } else {
+        if let Some(c) = self.iso {
+            // Isotropic: w_{k,d′} = c·w_φ,k, so every cone gets c·Σ_k w_φ,k X_k (one sum,
+            // and the φ sum is it when X = T).
+            let mut xs = [T::zero(); L];
+            for (k, lane) in self.lanes.iter().enumerate() {
+                let wk = self.wphi[k];
                 let (mut gk, mut xk) = ([T::zero(); L], [T::zero(); L]);
                 gk[..w].copy_from_slice(&lane.g[t..t + w]);
-                xk[..w].copy_from_slice(&src[t..t + w]);
-                accumulate::<T, L>(&gk, &xk, (self.wphi[k], &self.wu[k]), &mut fls, &mut acc);
+                for j in 0..L {
+                    fls[j] = fmadd(wk, gk[j], fls[j]);
+                }
+                if self.paper {
+                    xk[..w].copy_from_slice(&lane.p[t..t + w]);
+                    for j in 0..L {
+                        xs[j] = fmadd(wk, xk[j], xs[j]);
+                    }
+                }
+            }
+            let x = if self.paper { xs } else { fls };
+            for a in &mut acc {
+                for j in 0..L {
+                    a[j] = c * x[j];
+                }
+            }
+        } else {
+            for (k, lane) in self.lanes.iter().enumerate() {
+                let src = if self.paper { &lane.p } else { &lane.g };
+                if w == L {
+                    accumulate::<T, L>(
+                        &lane.g[t..t + L],
+                        &src[t..t + L],
+                        (self.wphi[k], &self.wu[k]),
+                        &mut fls,
+                        &mut acc,
+                    );
+                } else {
+                    let (mut gk, mut xk) = ([T::zero(); L], [T::zero(); L]);
+                    gk[..w].copy_from_slice(&lane.g[t..t + w]);
+                    xk[..w].copy_from_slice(&src[t..t + w]);
+                    let wk = (self.wphi[k], &self.wu[k]);
+                    accumulate::<T, L>(&gk, &xk, wk, &mut fls, &mut acc);
+                }
             }
         }
         let sixth = T::c(1.0 / 6.0);

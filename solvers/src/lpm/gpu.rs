@@ -40,6 +40,7 @@ use crate::gpu::kernel::{
 };
 use crate::gpu::{GpuContext, GpuError, storage_buffer, uniform_buffer};
 use crate::method::Stop;
+use crate::scene::Phase;
 use crate::{Grid, Medium, SolverError};
 use bytemuck::{Pod, Zeroable};
 
@@ -49,7 +50,7 @@ const WG: u32 = 64;
 /// Orders recorded per submission (and read back at once): the checkpoint interval K.
 pub const CHECK_EVERY: usize = 8;
 
-/// Uniforms of `lpm.wgsl` (`Params` there, same fields in the same order; 96 bytes), one per
+/// Uniforms of `lpm.wgsl` (`Params` there, same fields in the same order; 100 bytes), one per
 /// (face, slice).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
@@ -78,6 +79,7 @@ pub(crate) struct GpuParams {
     tstride: u32,
     first: u32,
     last: u32,
+    iso: f32,
 }
 
 /// One sub-segment (`Seg` in `lpm.wgsl`): absolute lateral offsets and the length in world
@@ -129,7 +131,8 @@ pub(crate) const SPEC: KernelSpec = KernelSpec {
     uniforms: &[(
         "P",
         struct_layout!(GpuParams; nx, ny, nz, nv, face, per, slots, rays, max_rays, wrap, d_i,
-            converge, ring, phi_ring, row, crow, rel, h3, ts, z0, z1, tstride, first, last),
+            converge, ring, phi_ring, row, crow, rel, h3, ts, z0, z1, tstride, first, last,
+            iso),
     )],
 };
 
@@ -427,6 +430,12 @@ impl<'a> GpuLpm<'a> {
                     tstride: tstride as u32,
                     first: u32::from(z0 == 0),
                     last: u32::from(z1 == na),
+                    // As the CPU collect: the isotropic F is rank one, w_{k,d′} = w_φ,k/4π.
+                    iso: if config.phase == Phase::Isotropic {
+                        (1.0 / (4.0 * std::f64::consts::PI)) as f32
+                    } else {
+                        0.0
+                    },
                 });
             }
         }

@@ -65,6 +65,8 @@ struct Params {
     // 1 when the slice starts (z0 = 0) / ends (z1 = the axis length) the face's sweep.
     first: u32,
     last: u32,
+    // c > 0 when every cone's weight is c * wphi (isotropic: 1 / 4 pi), else 0.
+    iso: f32,
 }
 
 struct Seg {
@@ -286,8 +288,16 @@ fn collect(@builtin(global_invocation_id) gid: vec3<u32>) {
             g = g + tbuf[(k * P.slots + (s - s0)) * P.tstride + id];
         }
         fl = fl + d.wphi * g;
+        if (P.iso == 0.0) {
+            for (var q = 0u; q < 6u; q = q + 1u) {
+                acc[q] = acc[q] + d.wu[q] * g;
+            }
+        }
+    }
+    if (P.iso > 0.0) {
+        // Rank-one F (isotropic): every cone gets c * the fluence sum, as on the CPU.
         for (var q = 0u; q < 6u; q = q + 1u) {
-            acc[q] = acc[q] + d.wu[q] * g;
+            acc[q] = P.iso * fl;
         }
     }
     let ss = sigma_s[v];

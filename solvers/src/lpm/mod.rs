@@ -226,6 +226,15 @@
 //!   | (e) collect: the 7 sums of a block of 8/16 voxels in registers over the 25 directions, fused | 0.59 | 8.26 |
 //!   | (f) x faces collect into outputs in their layout (contiguous writes) | 0.58 | 7.72 |
 //!   | (g) x and z faces' collect in pieces of 4096 voxels, transposes and sums in parallel | 0.55 | 7.39 |
+//!   | (h) isotropic F is rank one (w_{k,d′} = w_φ,k/4π): the collect sums once, not 7 times | 0.55 | 6.63 |
+//!
+//!   The bench after (h) (criterion means, same idle machine, two runs at triad 56/22 and
+//!   50/43 GB/s at 64³, 24/24 and 26/23 GB/s at 128³): 64³ 0.651 and 0.597 s, 128³ 7.06
+//!   and 6.89 s (before (h): 0.568 s and 7.71 s). Without AVX-512 (`wide` cleared, the
+//!   8-lane code every x86-64-v3 CPU runs): 64³ 0.74 / 0.79 s, 128³ 10.75 / 9.18 s (before /
+//!   after (h)): on an AVX2-only CPU of this class 128³ misses the 8 s target. (h) changes
+//!   f32 results by rounding only (GPU vs CPU T15 ≤ 7.8·10⁻⁷, T18 4.4·10⁻⁷ max relative);
+//!   the GPU collect takes the same shortcut (`Params.iso`), so the two stay together.
 //!
 //!   (c) alone gave 8 %: the 16-lane blocks were a quarter padding while a 64-ray row was
 //!   split at the wrap in two runs; after (d) the wide kernel runs full blocks. The
@@ -238,7 +247,7 @@
 //!   sets): 0.55 → 0.65 s at 64³, slower; a skew of 0 in one allocation: 0.57 s, no gain.
 //!   Streaming slices of S = 4 or fewer slabs: slower (0.97 s at 64³, S = 4, before (d)),
 //!   the per-slice synchronisation. [`CPU_SLICE_BYTES`] sets `Auto` between.
-//!   **Profile after** (`perf record`, 128³, S = 5): sweep 41 %, collect 38 %, serial
+//!   **Profile after (g)** (`perf record`, 128³, S = 5): sweep 41 %, collect 38 %, serial
 //!   parts of `solve` 4 %, memset 4 % (T fills), the bench's noise setup 4 %. At 64³ the
 //!   sweep runs 2.0·10⁹ sub-segments per second on 2 cores, at 128³ 1.35·10⁹: its rows of
 //!   ray, U, σt and T (4 × 64 KiB at 128³) no longer fit L1 between a slab's sub-segments.
