@@ -156,14 +156,7 @@ fn references(
     for (c, ch) in scene.channels.iter().enumerate() {
         let cam = ch.camera.context("the cloud scene has a camera")?;
         let [w, h] = cam.resolution;
-        let mut low = PtComponents {
-            total: Image::zeros(w, h),
-            single: Image::zeros(w, h),
-            multiple: Image::zeros(w, h),
-            emission: Image::zeros(w, h),
-            background: Image::zeros(w, h),
-            renders: Vec::new(),
-        };
+        let mut low = PtComponents::zeros(w, h);
         let mut high = Image::zeros(w, h);
         let mut k = 0u64;
         for pass in pt_passes(ch, &scene.effects) {
@@ -196,24 +189,10 @@ fn references(
                     high.add_independent(&im);
                     continue;
                 }
-                low.total.add_independent(&im);
-                match pass.component {
-                    Component::Single => low.single.add_independent(&im),
-                    Component::Multiple => low.multiple.add_independent(&im),
-                    Component::Emission => low.emission.add_independent(&im),
-                    Component::Background => low.background.add_independent(&im),
-                }
-                low.renders.push((pass.component, contributions, s));
+                low.add(pass.component, contributions, &im, s);
             }
         }
-        let mut all = PtComponents {
-            total: low.total.clone(),
-            single: low.single.clone(),
-            multiple: low.multiple.clone(),
-            emission: low.emission.clone(),
-            background: low.background.clone(),
-            renders: low.renders.clone(),
-        };
+        let mut all = low.clone();
         all.total.add_independent(&high);
         all.multiple.add_independent(&high);
         pt3.push(low);

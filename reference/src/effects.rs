@@ -116,6 +116,38 @@ pub struct PtComponents {
 }
 
 impl PtComponents {
+    /// All components zero (with zero error) on a `w` × `h` image, no renders.
+    pub fn zeros(w: usize, h: usize) -> Self {
+        Self {
+            total: Image::zeros(w, h),
+            single: Image::zeros(w, h),
+            multiple: Image::zeros(w, h),
+            emission: Image::zeros(w, h),
+            background: Image::zeros(w, h),
+            renders: Vec::new(),
+        }
+    }
+
+    /// Adds the independent render `im` of `component` (made with `contributions` in
+    /// `seconds`) to its component and to the total.
+    pub fn add(
+        &mut self,
+        component: Component,
+        contributions: Contributions,
+        im: &Image,
+        seconds: f64,
+    ) {
+        self.renders.push((component, contributions, seconds));
+        let target = match component {
+            Component::Single => &mut self.single,
+            Component::Multiple => &mut self.multiple,
+            Component::Emission => &mut self.emission,
+            Component::Background => &mut self.background,
+        };
+        target.add_independent(im);
+        self.total.add_independent(im);
+    }
+
     /// Camera paths traced: one per pixel sample of each render that ran, at `spp` samples
     /// per pixel (what `paths_per_second` counts in the atlas and `mitsuba_compare`).
     pub fn paths(&self, spp: u32) -> u64 {
@@ -190,26 +222,10 @@ pub fn components_from_parts(
             ),
         });
     }
-    let mut out = PtComponents {
-        total: Image::zeros(w, h),
-        single: Image::zeros(w, h),
-        multiple: Image::zeros(w, h),
-        emission: Image::zeros(w, h),
-        background: Image::zeros(w, h),
-        renders: Vec::new(),
-    };
+    let mut out = PtComponents::zeros(w, h);
     for (pass, part) in passes.into_iter().zip(parts) {
         let im = Image::from_sums(w, h, &part.sums)?;
-        out.renders
-            .push((pass.component, pass.contributions, part.seconds));
-        let target = match pass.component {
-            Component::Single => &mut out.single,
-            Component::Multiple => &mut out.multiple,
-            Component::Emission => &mut out.emission,
-            Component::Background => &mut out.background,
-        };
-        target.add_independent(&im);
-        out.total.add_independent(&im);
+        out.add(pass.component, pass.contributions, &im, part.seconds);
     }
     Ok(out)
 }

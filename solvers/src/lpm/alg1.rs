@@ -53,8 +53,7 @@ use super::cpu::{segment, series_threshold};
 use super::directions::{CONE_SOLID_ANGLE, CONES, Directions, PhaseMatrix, lateral_axes};
 use super::geometry::DirectionTable;
 use super::{
-    Area, BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, MemoryBytes, OrderTally,
-    PathLength, WrapBc,
+    BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, MemoryBytes, OrderTally, WrapBc,
 };
 use crate::{Grid, Medium, Real, SolverError};
 use std::f64::consts::PI;
@@ -128,33 +127,23 @@ impl<T: Real> Alg1Lpm<T> {
 
     /// Sub-segments one order processes (the same count as Alg 2's).
     pub fn sub_segments_per_order(&self) -> u64 {
-        let n = self.grid.n;
         self.dirs
             .dirs
             .iter()
             .zip(&self.tables)
-            .map(|(d, t)| {
-                let (b, c) = lateral_axes(d.face / 2);
-                (t.segs.len() * n[b] * n[c]) as u64
-            })
+            .map(|(d, t)| super::sweep_segments(&self.grid, d, t))
             .sum()
     }
 
     /// A of direction i: A⊥ = h²|ω·n_f| (D6) or the face area h².
     fn area(&self, i: usize) -> f64 {
-        let h2 = self.grid.dl * self.grid.dl;
-        match self.config.formulas.area {
-            Area::Perpendicular => h2 * self.dirs.dirs[i].cos_axis,
-            Area::Face => h2,
-        }
+        let cos = self.dirs.dirs[i].cos_axis;
+        self.config.formulas.area(self.grid.dl, cos)
     }
 
     /// The factor on the Euclidean length: 1 (D5) or the paper's 1/|ω_n|.
     fn path_factor(&self, i: usize) -> f64 {
-        match self.config.formulas.path {
-            PathLength::Euclidean => 1.0,
-            PathLength::Paper => 1.0 / self.dirs.dirs[i].cos_axis,
-        }
+        self.config.formulas.path_factor(self.dirs.dirs[i].cos_axis)
     }
 
     /// Marches every ray of direction `i` (element by element, voxel by voxel), depositing
@@ -174,13 +163,14 @@ impl<T: Real> Alg1Lpm<T> {
         let (na, nb, nc) = (n[a], n[b], n[c]);
         let stride = [1, n[0], n[0] * n[1]];
         let (sa, sb, sc) = (stride[a], stride[b], stride[c]);
-        let h3 = self.grid.dl.powi(3);
-        let area = self.area(i);
-        let mut wu = [T::zero(); CONES];
-        for (d, w) in wu.iter_mut().enumerate() {
-            *w = T::c(area * self.phase.coarse(i, d) / (h3 * CONE_SOLID_ANGLE));
-        }
-        let wphi = T::c(area * dir.solid_angle / h3);
+        let (wphi, wu) = super::collect_weights(
+            &self.grid,
+            &self.config.formulas,
+            &self.dirs,
+            &self.phase,
+            i,
+        );
+        let (wphi, wu) = (T::c(wphi), wu.map(T::c));
         let scale = self.grid.dl * self.path_factor(i);
         let l0 = if order == 0 { l_bc } else { 0.0 };
         let reentry = match self.config.wrap {
@@ -274,7 +264,6 @@ impl<T: Real> Alg1Lpm<T> {
             .map(|_| vec![T::zero(); nv])
             .collect();
         let mut phi_p = vec![T::zero(); nv];
-        let n = self.grid.n;
         let start = std::time::Instant::now();
         let mut segments = 0u64;
         for &i in dirs {
@@ -285,8 +274,7 @@ impl<T: Real> Alg1Lpm<T> {
                 phi_p: &mut phi_p,
             };
             self.march(i, &self.source, boundary.radiance[i], 0, &mut out);
-            let (b, c) = lateral_axes(d.face / 2);
-            segments += (self.tables[i].segs.len() * n[b] * n[c]) as u64;
+            segments += super::sweep_segments(&self.grid, d, &self.tables[i]);
         }
         Ok((segments, start.elapsed().as_secs_f64()))
     }

@@ -5,10 +5,7 @@
 
 use super::directions::{CONE_SOLID_ANGLE, CONES, Directions, PhaseMatrix, lateral_axes};
 use super::geometry::DirectionTable;
-use super::{
-    Area, BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, OrderTally, PathLength, StorageI,
-    WrapBc,
-};
+use super::{BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, OrderTally, StorageI, WrapBc};
 use crate::scene::Phase;
 use crate::{Grid, Medium, Real, SolverError};
 use rayon::prelude::*;
@@ -336,15 +333,11 @@ impl<T: Real> CpuLpm<T> {
     /// Sub-segments one order processes: Σ_i (table entries of i) × (rays of i's face), the
     /// measured count of D20 (294 n³ for m = 5).
     pub fn sub_segments_per_order(&self) -> u64 {
-        let n = self.grid.n;
         self.dirs
             .dirs
             .iter()
             .zip(&self.tables)
-            .map(|(d, t)| {
-                let (b, c) = lateral_axes(d.face / 2);
-                (t.segs.len() * n[b] * n[c]) as u64
-            })
+            .map(|(d, t)| super::sweep_segments(&self.grid, d, t))
             .sum()
     }
 
@@ -366,19 +359,13 @@ impl<T: Real> CpuLpm<T> {
     /// The ray tube's cross-section A of direction i: A⊥ = h²|ω·n_f| (D6) or the paper's face
     /// area h².
     pub fn area(&self, i: usize) -> f64 {
-        let h2 = self.grid.dl * self.grid.dl;
-        match self.config.formulas.area {
-            Area::Perpendicular => h2 * self.dirs.dirs[i].cos_axis,
-            Area::Face => h2,
-        }
+        let cos = self.dirs.dirs[i].cos_axis;
+        self.config.formulas.area(self.grid.dl, cos)
     }
 
     /// The factor on the Euclidean length: 1 (D5) or the paper's 1/|ω_n|.
     pub fn path_factor(&self, i: usize) -> f64 {
-        match self.config.formulas.path {
-            PathLength::Euclidean => 1.0,
-            PathLength::Paper => 1.0 / self.dirs.dirs[i].cos_axis,
-        }
+        self.config.formulas.path_factor(self.dirs.dirs[i].cos_axis)
     }
 
     /// The medium (σt, σs), in the layout the sweeps of sweep axis `a` read, and the strides
@@ -809,24 +796,19 @@ impl<T: Real> CpuLpm<T> {
         parts: &mut [(f64, f64)],
     ) {
         let per = self.dirs.per_face();
-        let h3 = self.grid.dl.powi(3);
         let paper = self.config.formulas.deposit == Deposit::Paper;
-        let wu: Vec<[T; CONES]> = (0..per)
+        let (wphi, wu): (Vec<T>, Vec<[T; CONES]>) = (0..per)
             .map(|k| {
-                let i = face * per + k;
-                let mut w = [T::zero(); CONES];
-                for (d, wd) in w.iter_mut().enumerate() {
-                    *wd = T::c(self.area(i) * self.phase.coarse(i, d) / (h3 * CONE_SOLID_ANGLE));
-                }
-                w
+                let w = super::collect_weights(
+                    &self.grid,
+                    &self.config.formulas,
+                    &self.dirs,
+                    &self.phase,
+                    face * per + k,
+                );
+                (T::c(w.0), w.1.map(T::c))
             })
-            .collect();
-        let wphi: Vec<T> = (0..per)
-            .map(|k| {
-                let i = face * per + k;
-                T::c(self.area(i) * self.dirs.dirs[i].solid_angle / h3)
-            })
-            .collect();
+            .unzip();
         let d_i = intensity.len();
         let [nx, ny, nz] = self.grid.n;
         let a = face / 2;

@@ -30,7 +30,7 @@
 //! supported. No float-atomic variant: wgpu 30's WGSL has no f32 atomics on lavapipe.
 
 use super::cpu::{CpuLpm, series_threshold};
-use super::directions::{CONE_SOLID_ANGLE, CONES, lateral_axes};
+use super::directions::{CONES, lateral_axes};
 use super::{
     BoundaryLight, Deposit, LpmConfig, LpmSolution, Memory, MemoryBytes, OrderTally, Orders,
     Streaming, WrapBc,
@@ -456,15 +456,14 @@ impl<'a> GpuLpm<'a> {
                 pad: 0.0,
             }));
             let area = setup.area(i);
-            let mut wu = [0.0f32; CONES];
-            for (q, w) in wu.iter_mut().enumerate() {
-                *w = (area * setup.phase.coarse(i, q) / (h3 * CONE_SOLID_ANGLE)) as f32;
-            }
+            let (wphi, wu) =
+                super::collect_weights(&grid, &config.formulas, &setup.dirs, &setup.phase, i);
+            let wu = wu.map(|w| w as f32);
             dirs.push(GpuDir {
                 start_base,
                 l_bc: 0.0,
                 w: (area * d.solid_angle) as f32,
-                wphi: (area * d.solid_angle / h3) as f32,
+                wphi: wphi as f32,
                 emit: (area * d.solid_angle * grid.dl * setup.path_factor(i) / d.cos_axis) as f32,
                 wu,
             });

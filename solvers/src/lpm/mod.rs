@@ -416,6 +416,55 @@ impl Formulas {
             path: PathLength::Paper,
         }
     }
+
+    /// The ray tube's cross-section A of a direction with |ω·n_f| = `cos_axis` on cells of
+    /// edge `h`: A⊥ = h²|ω·n_f| (D6) or the paper's face area h².
+    pub fn area(&self, h: f64, cos_axis: f64) -> f64 {
+        match self.area {
+            Area::Perpendicular => h * h * cos_axis,
+            Area::Face => h * h,
+        }
+    }
+
+    /// The factor on the Euclidean length of a direction with |ω·n_f| = `cos_axis`: 1 (D5)
+    /// or the paper's 1/|ω_n|.
+    pub fn path_factor(&self, cos_axis: f64) -> f64 {
+        match self.path {
+            PathLength::Euclidean => 1.0,
+            PathLength::Paper => 1.0 / cos_axis,
+        }
+    }
+}
+
+/// The collect weights of direction `i` (LPM Eq 4): (A|Ω^i|/h³ for φ, A·F^{i,d′}/(h³|Ω^{d′}|)
+/// per cone d′), with A of `formulas`; shared by Alg 2, Alg 1 and the GPU.
+pub fn collect_weights(
+    grid: &Grid,
+    formulas: &Formulas,
+    dirs: &Directions,
+    phase: &PhaseMatrix,
+    i: usize,
+) -> (f64, [f64; directions::CONES]) {
+    let d = &dirs.dirs[i];
+    let area = formulas.area(grid.dl, d.cos_axis);
+    let h3 = grid.dl.powi(3);
+    let mut wu = [0.0; directions::CONES];
+    for (q, w) in wu.iter_mut().enumerate() {
+        *w = area * phase.coarse(i, q) / (h3 * directions::CONE_SOLID_ANGLE);
+    }
+    (area * d.solid_angle / h3, wu)
+}
+
+/// Sub-segments of one sweep of direction `dir` with geometry table `table` on `grid`: table
+/// entries × rays of its face (Σ over the directions: the measured count of D20, 294 n³ for
+/// m = 5).
+pub fn sweep_segments(
+    grid: &Grid,
+    dir: &directions::Direction,
+    table: &geometry::DirectionTable,
+) -> u64 {
+    let (b, c) = directions::lateral_axes(dir.face / 2);
+    (table.segs.len() * grid.n[b] * grid.n[c]) as u64
 }
 
 /// What a ray that re-enters through a side face carries (D12).
