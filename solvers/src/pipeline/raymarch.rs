@@ -79,6 +79,15 @@ pub enum Term<'a> {
         /// φ per voxel of `grid`.
         phi: &'a [f64],
     },
+    /// σs·S with S on `grid`: a view-dependent source, the in-scattered radiance per unit σs
+    /// towards *this* camera (POP's L_acc for an observer at the camera, `pop::upsample`).
+    /// Unlike [`Term::Multiple`] there is no 1/4π: S is already a radiance.
+    ViewSource {
+        /// The grid of S.
+        grid: &'a Grid,
+        /// S per voxel of `grid`.
+        radiance: &'a [f64],
+    },
     /// j/4π.
     Emission,
     /// The environment seen through the medium: `radiance`·T along the camera ray.
@@ -249,10 +258,19 @@ pub fn march(
             Term::Emission if medium.emission[i] > 0.0 => {
                 acc += (-tau).exp() * w0(st, len) * medium.emission[i] * INV_4PI;
             }
-            Term::Multiple { grid, phi } if sigma_s[i] > 0.0 => {
+            Term::Multiple { grid, phi: field }
+            | Term::ViewSource {
+                grid,
+                radiance: field,
+            } if sigma_s[i] > 0.0 => {
+                let scale = if matches!(term, Term::Multiple { .. }) {
+                    INV_4PI
+                } else {
+                    1.0
+                };
                 let m = (len / step_len).ceil().max(1.0) as usize;
                 let h = len / m as f64;
-                let f = |t: f64| sigma_s[i] * trilinear(grid, phi, point(t), false) * INV_4PI;
+                let f = |t: f64| sigma_s[i] * trilinear(grid, field, point(t), false) * scale;
                 let mut fa = f(a);
                 for k in 0..m {
                     let fb = f(a + (k + 1) as f64 * h);

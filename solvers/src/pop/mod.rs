@@ -41,10 +41,14 @@
 //! Cells without light skip the fraction pass (a wavefront fills one slice per iteration).
 //!
 //! The isotropic residuum (Eqs 9–10) is in [`residuum`] (CPU, f64, behind
-//! `PopConfig::residuum`; not a registered variant yet). Radial grids (Sec 6), the 2× merge
-//! with joint bilateral upsampling of the world-space result (Secs 4.4, 5.3) and importance
-//! propagation (Sec 5.2) are not in this module yet; the GPU kernel propagates directional and environment ordinates only (what
-//! the CPU code does), and the grids, resampling and links are still built on the host.
+//! `PopConfig::residuum`). Back to world space (Secs 4.4, 5.3) is [`upsample`]: the merge
+//! into one medium-aligned grid at 2× the ordinate grids' resolution (D13), joint bilateral
+//! upsampling guided by σs (D19; trilinear as the control; T14 and the W10 energy
+//! measurement there), and POP's own image ([`upsample::view_image`]: the camera as Eq 8's
+//! observer, σs·L_acc raymarched through the pipeline's view-dependent source hook
+//! `pipeline::raymarch::Term::ViewSource`). Importance propagation (Sec 5.2) is not built;
+//! the GPU kernel propagates directional and environment ordinates only (what the CPU code
+//! does), and the grids, resampling and links are still built on the host.
 //!
 //! ## GPU ([`gpu`], `pop.wgsl`, f32)
 //! Per ordinate the host builds the [`CpuPop`] (resampling, links T and γ, Eq 8's u,
@@ -128,8 +132,20 @@
 //!   ([`Observer::Direction`]). Default [`Eq8::PhaseConvolved`] accumulates
 //!   L^m f_hg(u, a^m g), the in-scattered lobe; [`Eq8::Literal`] uses a^m as printed. Both
 //!   clamp the lobe to ≤ 1 − 10⁻⁴ and evaluate f_hg as (1 − g)(1 + g)/((1 − g)² + 2g(1 − μ))^{3/2}/4π,
-//!   which is finite in f32 where the expanded denominator cancels to ≤ 0 (`t2_…`). Which
-//!   reading is closer to the path tracer (T23) is not measured yet.
+//!   which is finite in f32 where the expanded denominator cancels to ≤ 0 (`t2_…`). The
+//!   convolution is exact, not an approximation: HG lobes have Legendre moments g^l, and the
+//!   moments of a convolution multiply, so HG(a) ⊛ HG(g) = HG(a·g). **T23, the orbit test**
+//!   (`reference/tests/pop_orbit.rs`: Fig 12 cube, an orthographic camera on a circle in the
+//!   plane of d, POP's own image by [`upsample::view_image`] vs the path tracer, mean
+//!   silhouette radiance): the phase-convolved reading is closer, mean |ln(POP/PT)| over
+//!   θ = 0…180° of 0.33 vs 0.58 (literal) at g = 0.96 and 0.85 vs 1.02 at g = 0.7. At
+//!   g = 0.96 POP/PT is 0.49 / 1.21 / 1.30 / 1.25 / 0.88 / 0.82 / 0.54 at θ = 0 / 10 / 20 / 45 /
+//!   90 / 135 / 180° (literal 3.30 / 1.21 / 1.07 / 0.93 / 0.59 / 0.49 / 0.27). T23 as written
+//!   (one reading within 2× at every angle) fails at θ = 0 only, straight into the beam: the
+//!   light there is a mixture of scattering orders (order k ≈ HG(g^k)) and one HG lobe with
+//!   the same first moment has a lower forward peak (HG(1, x) is convex in x: 0.46–0.65 of the
+//!   mixture for σs z = 0.5…4), a limit of the unimodal lobe (W1), which the test pins as the
+//!   band [0.4, 0.7]. At g = 0.7 POP is 2.5–4.3× too bright from θ = 45° on (W2).
 //! * **Stopping (D9).** R^m/P_inj < ε_L in every channel, where R^m is the power in flight
 //!   (default ε_L = the precision's `DEFAULT_TOLERANCE`, 10⁻⁶ f64, 10⁻⁴ f32); ε_L = 0 runs
 //!   the paper's fixed M ([`PopConfig::fixed`]); a run also stops when nothing is left.
@@ -202,6 +218,7 @@ pub mod method;
 pub mod residuum;
 #[cfg(test)]
 mod tests;
+pub mod upsample;
 
 pub use cpu::{CpuPop, Ledger};
 pub use env::{Prefilter, environment_ordinates, fibonacci};
@@ -209,6 +226,7 @@ pub use gpu::GpuPop;
 pub use grid::{PropagationGrid, frame};
 pub use kernel::{Fractions, cumulative, decay, fractions, hg};
 pub use method::{POP, PopMethod};
+pub use upsample::{Slot, Upsample};
 
 use crate::method::Stop;
 use crate::{Grid, Medium, Real, SolverError};
