@@ -330,6 +330,8 @@ pub static EXPERIMENTS: &[ExperimentEntry] = &[
     ExperimentEntry::of::<crate::pop_cube::PopCube>(),
     ExperimentEntry::of::<crate::pop_convergence::PopConvergence>(),
     ExperimentEntry::of::<crate::pop_residuum::PopResiduum>(),
+    ExperimentEntry::of::<crate::pop_ordinates::PopOrdinates>(),
+    ExperimentEntry::of::<crate::pop_weaknesses::PopWeaknesses>(),
 ];
 
 /// The registered experiment called `name`.

@@ -194,6 +194,9 @@ pub struct ViewImage {
     pub steps: usize,
     /// The largest final R/P_inj over the ordinates.
     pub residual: f64,
+    /// Wall seconds of the stages: the solve (grids, resampling, injection, propagation),
+    /// back to world space (merge and upsampling), the raymarch.
+    pub seconds: [f64; 3],
 }
 
 /// The observer of Eq 8 for `camera` (D7): the eye of a perspective camera; for an
@@ -232,9 +235,12 @@ pub fn view_image<T: Real>(
         observer: Some(observer_of(camera)?),
         ..*config
     };
+    let t0 = std::time::Instant::now();
     let sol = super::solve::<T>(&pm, ordinates, &config)?;
+    let t1 = std::time::Instant::now();
     let s = sol.world(&pm, Slot::Radiance, mode, DEFAULT_FACTOR)?;
     let field = s.first().map_or(&[][..], |v| &v[..]);
+    let t2 = std::time::Instant::now();
     let pixels = render_term(
         medium,
         camera,
@@ -253,6 +259,11 @@ pub fn view_image<T: Real>(
             .iter()
             .filter_map(|r| r.history.last().copied())
             .fold(0.0, f64::max),
+        seconds: [
+            (t1 - t0).as_secs_f64(),
+            (t2 - t1).as_secs_f64(),
+            t2.elapsed().as_secs_f64(),
+        ],
     })
 }
 

@@ -1,0 +1,2 @@
+//! Binary of [`experiments::pop_weaknesses`].
+experiments::experiment_main!(experiments::pop_weaknesses::PopWeaknesses);
