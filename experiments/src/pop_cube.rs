@@ -6,7 +6,10 @@
 //!
 //! Probes: 2×2×2-voxel blocks on the axis (y, z voxels N/2−1, N/2) at x-voxel pairs spread
 //! over the cube ([`probe_pairs`]); POP's ⟨μ⟩ = Σ J/Σ φ with J = Σ L^m a^m.
-//! The angular radiance L(μ) per probe (Fig 12's polar plots) is not tallied.
+//! The angular radiance per probe (Fig 12's polar plots; `angular.csv`, `angular.png`):
+//! band averages over 20 bands of μ = ω·d, POP's Σ_m L^m f_hg(μ, a^m)
+//! (`solvers::pop::probe::angular`) against the path tracer's direction-binned
+//! track-length tally (`reference::pathtracer::angular`, its own histories, same seed).
 //!
 //! **Cost** (measured once, default flags, on the 2 shared cores at load average 6):
 //! `pop_cube` 10.3 s wall (4.7 s CPU), `pop_convergence` 15.0 s (7.9 s), `pop_residuum`
@@ -18,6 +21,7 @@ use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
 use anyhow::{Context, Result, bail};
 use reference::pathtracer::PathSettings;
+use reference::pathtracer::angular::angular;
 use reference::pathtracer::current::{CurrentTally, current};
 use serde::Serialize;
 use solvers::pop::{self, Ordinate, PopConfig, PopMedium};
@@ -152,6 +156,29 @@ pub struct ProfileRow {
     pub mu_pt_stderr: f64,
 }
 
+/// One band of one probe of `angular.csv` (Fig 12's polar plots).
+#[derive(Debug, Clone, Serialize)]
+pub struct AngularRow {
+    /// HG g.
+    pub g: f64,
+    /// Probe index (as in `probes.csv`).
+    pub probe: usize,
+    /// Probe centre x.
+    pub x: f64,
+    /// Lower band edge in μ = ω·d.
+    pub mu_lo: f64,
+    /// Upper band edge.
+    pub mu_hi: f64,
+    /// Band-averaged radiance, POP converged.
+    pub l_pop: f64,
+    /// The same at the paper's M.
+    pub l_pop_paper_m: f64,
+    /// Band-averaged radiance, path tracer (`reference::pathtracer::angular`).
+    pub l_pt: f64,
+    /// Its error.
+    pub l_pt_stderr: f64,
+}
+
 /// What the run returns.
 #[derive(Debug, Clone)]
 pub struct Summary {
@@ -159,7 +186,12 @@ pub struct Summary {
     pub cubes: Vec<CubeRow>,
     /// `probes.csv`.
     pub probes: Vec<ProbeRow>,
+    /// `angular.csv`.
+    pub angular: Vec<AngularRow>,
 }
+
+/// μ bands of `angular.csv`.
+pub const ANGULAR_BANDS: usize = 20;
 
 /// The x-voxel pairs of the five probes for `n` cells.
 pub fn probe_pairs(n: usize) -> Vec<[usize; 2]> {
@@ -289,6 +321,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Summary> {
     let pairs = probe_pairs(args.n);
     let mut cubes = Vec::new();
     let mut probes = Vec::new();
+    let mut angular_rows = Vec::new();
     let mut profile = Vec::new();
     for &g in &args.g {
         pb.set_message(format!("g = {g}"));
@@ -305,7 +338,60 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Summary> {
         };
         let pt: CurrentTally = current(&pt_scene(&grid, args.sigma_s, g)?, &settings)
             .with_context(|| format!("path tracer, g = {g}"))?;
+        let probe_voxels: Vec<Vec<usize>> = pairs
+            .iter()
+            .map(|pair| pair.iter().flat_map(|&i| column(&grid, i)).collect())
+            .collect();
+        let edges: Vec<f64> = (0..=ANGULAR_BANDS)
+            .map(|k| -1.0 + 2.0 * k as f64 / ANGULAR_BANDS as f64)
+            .collect();
+        let pt_angular = angular(
+            &pt_scene(&grid, args.sigma_s, g)?,
+            &settings,
+            &probe_voxels,
+            [1.0, 0.0, 0.0],
+            ANGULAR_BANDS,
+        )
+        .with_context(|| format!("path tracer angular tally, g = {g}"))?;
         ctx.timing(format!("path tracer g={g}"), t0.elapsed().as_secs_f64());
+        let points: Vec<Vec<[f64; 3]>> = probe_voxels
+            .iter()
+            .map(|v| {
+                v.iter()
+                    .map(|&i| {
+                        let [x, y, z] = grid.coords(i);
+                        grid.center(x, y, z)
+                    })
+                    .collect()
+            })
+            .collect();
+        let pm = PopMedium::homogeneous(grid, args.sigma_s, 0.0, g)?;
+        let o = Ordinate::directional([1.0, 0.0, 0.0], 1.0)?;
+        let pop_conv =
+            pop::probe::angular::<f64>(&pm, &o, &PopConfig::new::<f64>(args.n), &points, &edges)?;
+        let pop_paper = pop::probe::angular::<f64>(
+            &pm,
+            &o,
+            &PopConfig::fixed::<f64>(args.n, args.paper_m),
+            &points,
+            &edges,
+        )?;
+        for (k, pair) in pairs.iter().enumerate() {
+            for b in 0..ANGULAR_BANDS {
+                let e = pt_angular.radiance[k][b];
+                angular_rows.push(AngularRow {
+                    g,
+                    probe: k,
+                    x: (pair[0] as f64 + 1.0) * grid.dl,
+                    mu_lo: edges[b],
+                    mu_hi: edges[b + 1],
+                    l_pop: pop_conv[k][b],
+                    l_pop_paper_m: pop_paper[k][b],
+                    l_pt: e.mean,
+                    l_pt_stderr: e.stderr,
+                });
+            }
+        }
         let pt_mean = pt.mean_fluence();
         let e = &pt.exits;
         let side = [2, 3, 4, 5];
@@ -386,6 +472,35 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Summary> {
     ctx.csv("cube.csv", &cubes)?;
     ctx.csv("probes.csv", &probes)?;
     ctx.csv("profile.csv", &profile)?;
+    ctx.csv("angular.csv", &angular_rows)?;
+    let centre = pairs.len() / 2;
+    let mut ang_series = Vec::new();
+    for (c, &g) in args.g.iter().enumerate() {
+        let rows: Vec<&AngularRow> = angular_rows
+            .iter()
+            .filter(|r| r.g == g && r.probe == centre)
+            .collect();
+        let mid = |r: &AngularRow| 0.5 * (r.mu_lo + r.mu_hi);
+        ang_series.push(Series::new(
+            format!("PT, g = {g}"),
+            rows.iter().map(|r| (mid(r), r.l_pt.max(1e-6))).collect(),
+            Style::Points,
+            c,
+        ));
+        ang_series.push(Series::new(
+            format!("POP conv., g = {g}"),
+            rows.iter().map(|r| (mid(r), r.l_pop.max(1e-6))).collect(),
+            Style::Line,
+            c,
+        ));
+    }
+    plot(
+        &ctx.path("angular.png"),
+        "POP Fig 12: angular radiance at the centre probe (band averages)",
+        &Axis::lin("μ = ω·d"),
+        &Axis::log("radiance L̄(μ)"),
+        &ang_series,
+    )?;
     let mut mu_series = Vec::new();
     let mut phi_series = Vec::new();
     for (c, &g) in args.g.iter().enumerate() {
@@ -438,7 +553,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Summary> {
         &Axis::log("φ"),
         &phi_series,
     )?;
-    Ok(Summary { cubes, probes })
+    Ok(Summary {
+        cubes,
+        probes,
+        angular: angular_rows,
+    })
 }
 
 /// POP Fig 12 in the registry.
@@ -483,6 +602,21 @@ impl Experiment for PopCube {
                     "max_mu_diff",
                 ],
             ),
+            Promise::csv(
+                "angular.csv",
+                &[
+                    "g",
+                    "probe",
+                    "x",
+                    "mu_lo",
+                    "mu_hi",
+                    "l_pop",
+                    "l_pop_paper_m",
+                    "l_pt",
+                    "l_pt_stderr",
+                ],
+            ),
+            Promise::file("angular.png"),
             Promise::csv(
                 "probes.csv",
                 &[
@@ -581,6 +715,12 @@ impl Experiment for PopCube {
              (spec pop.md §5, W1–W4).\n\n",
         );
         out.push_str(&s.pngs(["mean_cosine.png", "fluence_profile.png"]));
+        out.push_str(
+            "\n\nFig 12's polar plots as band averages: the radiance at the centre probe in 20 bands of \
+             μ = ω·d, POP's Σ_m L^m f_hg(μ, a^m) against the path tracer's direction-binned track-length tally \
+             (`angular.csv` has every probe, and POP at the paper's M).\n\n",
+        );
+        out.push_str(&s.png("angular.png"));
         Ok(out)
     }
 }

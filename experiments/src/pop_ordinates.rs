@@ -21,7 +21,7 @@
 //!
 //! Outputs: `ordinates.csv`, `error_vs_ordinates.png`, `meta.json`.
 //!
-//! **Measured** (default flags, f32, idle 2-vCPU Xeon; 14.0 s wall, `--quick` 0.7 s):
+//! **Measured** (default flags, f32, 2-vCPU AMD EPYC with other jobs compiling; 14.0 s wall, `--quick` 0.7 s):
 //! * slab (Fig 6), relative RMSE vs the path tracer (its own noise 0.042): g = 0.95, N = 8 /
 //!   27 / 64: none 0.68 / 1.85 / 0.91, Voronoi 0.63 / 1.16 / 0.69, heuristic 0.61 / 1.20 /
 //!   0.70; g = 0.99: none 0.89 / 4.86 / 3.74, Voronoi 0.69 / 2.95 / 2.35, heuristic 0.67 /

@@ -19,7 +19,7 @@
 //!
 //! Outputs: `slabs.csv`, `blobs.csv`, `skew.csv`, `slabs.png`, `meta.json`.
 //!
-//! **Measured** (default flags; 57 s wall on the 2-vCPU Xeon with other jobs compiling,
+//! **Measured** (default flags; 57 s wall on the 2-vCPU AMD EPYC with other jobs compiling,
 //! `--quick` 1.2 s; pinned by `experiments/tests/pop_weaknesses.rs`):
 //! * slabs, R POP / R AD at N = 8 / 16 / 32: τ = 1, g = 0: 0.889 / 0.941 / 0.970 vs 0.341
 //!   (T = 1/(N+1) whatever τ: the lattice walk, W2); τ = 4, g = 0: the same POP numbers vs

@@ -218,6 +218,59 @@ fn trace(
     nv: usize,
     t: &mut [f64],
 ) {
+    history(
+        world,
+        sources,
+        settings,
+        index,
+        |tally, event| match event {
+            Track::Segment { voxel, length, d } => {
+                tally_segment(tally, nv, voxel, length, d);
+            }
+            Track::Exit { face, weight } => tally[4 * nv + face] += weight,
+        },
+        t,
+    );
+}
+
+fn tally_segment(t: &mut [f64], nv: usize, v: usize, l: f64, d: [f64; 3]) {
+    t[v] += l;
+    t[nv + v] += l * d[0];
+    t[2 * nv + v] += l * d[1];
+    t[3 * nv + v] += l * d[2];
+}
+
+/// What a history reports to its tally.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Track {
+    /// A flight segment inside `voxel`: weight × length, along `d`.
+    Segment {
+        /// The voxel.
+        voxel: usize,
+        /// Weight times the segment's length.
+        length: f64,
+        /// Direction of flight.
+        d: [f64; 3],
+    },
+    /// The particle left the box through `face` ([`FACES`]) with `weight`.
+    Exit {
+        /// Face index.
+        face: usize,
+        /// Weight.
+        weight: f64,
+    },
+}
+
+/// One particle history (the sources, delta tracking, implicit capture and roulette of
+/// [`fluence`](super::fluence())), reporting every segment and the exit to `sink`.
+pub(crate) fn history<S: ?Sized>(
+    world: &World,
+    sources: &Sources,
+    settings: &PathSettings,
+    index: u64,
+    mut sink: impl FnMut(&mut S, Track),
+    state: &mut S,
+) {
     let mut rng = Rng::new(settings.seed, index);
     let Some((mut o, mut d)) = sources.sample(world, &mut rng) else {
         return;
@@ -233,18 +286,27 @@ fn trace(
         if let Some((c0, c1)) = clip {
             let (ta, tb) = (c0.max(0.0), c1.min(event.t_end()));
             volume.voxels(o, d, ta, tb, |v, t0, t1| {
-                let l = weight * (t1 - t0);
-                t[v] += l;
-                t[nv + v] += l * d[0];
-                t[2 * nv + v] += l * d[1];
-                t[3 * nv + v] += l * d[2];
+                sink(
+                    state,
+                    Track::Segment {
+                        voxel: v,
+                        length: weight * (t1 - t0),
+                        d,
+                    },
+                );
             });
         }
         let Event::Collision(tc) = event else {
             if event == Event::Escape && clip.is_some_and(|(_, c1)| c1 > 0.0) {
                 // Last seen inside the box (or entering it): it leaves through a face.
                 let start = clip.map_or(o, |(c0, _)| if c0 > 0.0 { at(o, d, c0) } else { o });
-                t[4 * nv + exit_face(start, d, lo, hi)] += weight;
+                sink(
+                    state,
+                    Track::Exit {
+                        face: exit_face(start, d, lo, hi),
+                        weight,
+                    },
+                );
             }
             return;
         };

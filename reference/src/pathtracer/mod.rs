@@ -54,6 +54,7 @@
 //! (an isotropic source of radiance j/4π per unit length), light powers in watts; fluence in
 //! power per area, radiance in power per area per steradian.
 
+pub mod angular;
 pub mod camera;
 pub mod contributions;
 pub mod current;
