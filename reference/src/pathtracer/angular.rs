@@ -14,7 +14,7 @@
 
 use super::TraceOptions;
 use super::current::{Track, history};
-use super::estimators::{Estimate, batch_sizes, check_batches};
+use super::estimators::{BatchMeans, Estimate, batch_sizes, batch_starts, check_batches};
 use super::fluence::PathSettings;
 use super::world::{Sources, World};
 use crate::ReferenceError;
@@ -82,14 +82,7 @@ pub fn angular(
     }
     let np = probes.len();
     let sizes = batch_sizes(settings.paths, settings.batches);
-    let starts: Vec<u64> = sizes
-        .iter()
-        .scan(0u64, |s, &n| {
-            let a = *s;
-            *s += n;
-            Some(a)
-        })
-        .collect();
+    let starts = batch_starts(&sizes);
     let batches: Vec<(u64, Vec<f64>)> = (0..sizes.len())
         .into_par_iter()
         .map(|b| {
@@ -116,26 +109,21 @@ pub fn angular(
             (sizes[b], t)
         })
         .collect();
-    let total: u64 = sizes.iter().sum();
-    let nb = batches.len().max(2) as f64;
+    let mut means = BatchMeans::new(np * bins);
+    for (n, t) in &batches {
+        means.add(t, *n);
+    }
+    let est = means.finish();
     let dmu = 2.0 / bins as f64;
     let cell = grid.dl.powi(3);
     let radiance = (0..np)
         .map(|p| {
             let scale = 1.0 / (probes[p].len() as f64 * cell * 2.0 * PI * dmu);
-            (0..bins)
-                .map(|k| {
-                    let bin = p * bins + k;
-                    let mean = batches.iter().map(|(_, s)| s[bin]).sum::<f64>() / total as f64;
-                    let s2 = batches
-                        .iter()
-                        .map(|(n, s)| *n as f64 * (s[bin] / *n as f64 - mean).powi(2))
-                        .sum::<f64>()
-                        / ((nb - 1.0) * total as f64);
-                    Estimate {
-                        mean: mean * scale,
-                        stderr: s2.max(0.0).sqrt() * scale,
-                    }
+            est[p * bins..(p + 1) * bins]
+                .iter()
+                .map(|e| Estimate {
+                    mean: e.mean * scale,
+                    stderr: e.stderr * scale,
                 })
                 .collect()
         })

@@ -18,7 +18,7 @@
 //! combined in batch order, so every result is bit-identical for any thread count.
 
 use super::TraceOptions;
-use super::estimators::{Estimate, batch_sizes, check_batches};
+use super::estimators::{Estimate, batch_sizes, batch_starts, check_batches};
 use super::fluence::{Field, PathSettings, scatter};
 use super::math::at;
 use super::rng::Rng;
@@ -131,14 +131,7 @@ pub fn current_with(
     let nv = grid.len();
     let bins = 4 * nv + 6;
     let sizes = batch_sizes(settings.paths, settings.batches);
-    let starts: Vec<u64> = sizes
-        .iter()
-        .scan(0u64, |s, &n| {
-            let a = *s;
-            *s += n;
-            Some(a)
-        })
-        .collect();
+    let starts = batch_starts(&sizes);
     let norm = 1.0 / grid.dl.powi(3);
     let p0 = sources.total;
     let batches: Vec<(u64, Vec<f64>)> = (0..sizes.len())

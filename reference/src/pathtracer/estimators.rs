@@ -90,6 +90,18 @@ pub(crate) fn batch_sizes(total: u64, batches: u32) -> Vec<u64> {
         .collect()
 }
 
+/// The first sample index of each batch of `sizes` (a running sum).
+pub(crate) fn batch_starts(sizes: &[u64]) -> Vec<u64> {
+    sizes
+        .iter()
+        .scan(0u64, |s, &n| {
+            let a = *s;
+            *s += n;
+            Some(a)
+        })
+        .collect()
+}
+
 /// Weighted batch-means accumulator over `bins` tallies (Welford's update on batch means).
 #[derive(Debug, Clone)]
 pub(crate) struct BatchMeans {

@@ -21,7 +21,7 @@
 //! batch order: results are bit-identical for any thread count.
 
 use super::TraceOptions;
-use super::estimators::{BatchMeans, batch_sizes, check_batches};
+use super::estimators::{BatchMeans, batch_sizes, batch_starts, check_batches};
 use super::math::{Vec3, at};
 use super::phase::sample_dir;
 use super::rng::Rng;
@@ -100,14 +100,7 @@ pub fn fluence_with(
     let grid = *world.volume().grid();
     let nv = grid.len();
     let sizes = batch_sizes(settings.paths, settings.batches);
-    let starts: Vec<u64> = sizes
-        .iter()
-        .scan(0u64, |s, &n| {
-            let a = *s;
-            *s += n;
-            Some(a)
-        })
-        .collect();
+    let starts = batch_starts(&sizes);
     let (mut unc, mut col, mut tot) = (
         BatchMeans::new(nv),
         BatchMeans::new(nv),

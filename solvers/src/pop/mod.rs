@@ -590,9 +590,7 @@ impl<T: Real> OrdinateRun<T> {
     /// φ of channel `ch` at world point `p`: clamped trilinear in the rotated grid, 0
     /// outside it (spec D13's gather, on any target grid).
     pub fn fluence_at(&self, ch: usize, p: [f64; 3]) -> f64 {
-        let stride = self.channels * cpu::ACC;
-        self.grid
-            .interpolate_with(&self.acc, stride, ch * cpu::ACC, p)
+        self.slot_at(ch, upsample::Slot::Fluence, p)
     }
 }
 
@@ -607,18 +605,7 @@ impl<T: Real> PopSolution<T> {
     /// Fluence per channel on `target` (x fastest): Σ over ordinates of the trilinear gather
     /// of each φ at the voxel centres (spec D13 without the 2× merge and the JBU).
     pub fn fluence_on(&self, target: &Grid) -> Vec<Vec<f64>> {
-        let nc = self.runs.first().map_or(0, |r| r.channels);
-        (0..nc)
-            .map(|ch| {
-                let mut out = target.sample(|_| 0.0);
-                out.par_iter_mut().enumerate().for_each(|(idx, v)| {
-                    let [i, j, k] = target.coords(idx);
-                    let p = target.center(i, j, k);
-                    *v = self.runs.iter().map(|r| r.fluence_at(ch, p)).sum();
-                });
-                out
-            })
-            .collect()
+        self.on_grid(target, upsample::Slot::Fluence)
     }
 }
 

@@ -125,6 +125,23 @@ impl<T: Real> PopSolution<T> {
         Merged { grid, values }
     }
 
+    /// `slot` per channel at the voxel centres of `target`: Σ over ordinates of the clamped
+    /// trilinear gather in each rotated grid (no merged grid).
+    pub fn on_grid(&self, target: &Grid, slot: Slot) -> Vec<Vec<f64>> {
+        let nc = self.runs.first().map_or(0, |r| r.channels);
+        (0..nc)
+            .map(|ch| {
+                let mut out = target.sample(|_| 0.0);
+                out.par_iter_mut().enumerate().for_each(|(idx, v)| {
+                    let [i, j, k] = target.coords(idx);
+                    let p = target.center(i, j, k);
+                    *v = self.runs.iter().map(|r| r.slot_at(ch, slot, p)).sum();
+                });
+                out
+            })
+            .collect()
+    }
+
     /// `slot` per channel on the medium's voxels, by `mode`; the merged grid has
     /// `factor`·N cells across the box (N: the ordinate grids' cells per axis).
     pub fn world(
@@ -136,18 +153,7 @@ impl<T: Real> PopSolution<T> {
     ) -> Result<Vec<Vec<f64>>, SolverError> {
         let target = &medium.grid;
         if mode == Upsample::Direct {
-            let nc = self.runs.first().map_or(0, |r| r.channels);
-            return Ok((0..nc)
-                .map(|ch| {
-                    let mut out = target.sample(|_| 0.0);
-                    out.par_iter_mut().enumerate().for_each(|(idx, v)| {
-                        let [i, j, k] = target.coords(idx);
-                        let p = target.center(i, j, k);
-                        *v = self.runs.iter().map(|r| r.slot_at(ch, slot, p)).sum();
-                    });
-                    out
-                })
-                .collect());
+            return Ok(self.on_grid(target, slot));
         }
         if factor == 0 {
             return Err(SolverError::BadParameter {
