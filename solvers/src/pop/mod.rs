@@ -41,7 +41,12 @@
 //! Cells without light skip the fraction pass (a wavefront fills one slice per iteration).
 //!
 //! The isotropic residuum (Eqs 9–10) is in [`residuum`] (CPU, f64, behind
-//! `PopConfig::residuum`; not a registered variant yet). Radial grids (Sec 6), the 2× merge
+//! `PopConfig::residuum`; not a registered variant yet).
+//!
+//! Point lights propagate on radial octahedral grids (Sec 6, spec D16–D18) in [`radial`]:
+//! [`solve_point`] and [`RadialSolution::fluence_on`]; its own docs hold the equations, the
+//! decisions with their measurements and T15 (not wired into [`method::PopMethod`] yet,
+//! CPU only). The 2× merge
 //! with joint bilateral upsampling of the world-space result (Secs 4.4, 5.3) and importance
 //! propagation (Sec 5.2) are not in this module yet; the GPU kernel propagates directional and environment ordinates only (what
 //! the CPU code does), and the grids, resampling and links are still built on the host.
@@ -199,6 +204,7 @@ pub mod gpu;
 pub mod grid;
 pub mod kernel;
 pub mod method;
+pub mod radial;
 pub mod residuum;
 #[cfg(test)]
 mod tests;
@@ -209,6 +215,7 @@ pub use gpu::GpuPop;
 pub use grid::{PropagationGrid, frame};
 pub use kernel::{Fractions, cumulative, decay, fractions, hg};
 pub use method::{POP, PopMethod};
+pub use radial::{RadialConfig, RadialSolution, solve_point};
 
 use crate::method::Stop;
 use crate::{Grid, Medium, Real, SolverError};
