@@ -66,6 +66,7 @@ pub mod phase;
 pub mod rng;
 pub mod shard;
 pub mod slab;
+pub mod sphere;
 pub mod tracking;
 pub mod volume;
 pub(crate) mod world;

@@ -385,6 +385,10 @@ pub struct RadialConfig {
     pub tolerance: f64,
     /// Iteration cap M.
     pub max_iterations: usize,
+    /// Geometric-tail extrapolation (ours, see the module docs): `Some(ε)` ends a channel
+    /// once its predicted Σ_m R^m is stable to ε over [`TAIL_WINDOW`] steps, adding the rest
+    /// of the Neumann series as Q·ρ/(1 − ρ); `None` (default) iterates.
+    pub tail: Option<f64>,
 }
 
 impl RadialConfig {
@@ -397,6 +401,7 @@ impl RadialConfig {
             r_max: None,
             tolerance: T::DEFAULT_TOLERANCE,
             max_iterations: 1_000_000,
+            tail: None,
         }
     }
 
@@ -433,6 +438,15 @@ impl RadialConfig {
                     name: "radial.r_max",
                     value: r,
                     reason: "must be finite and > 0",
+                });
+            }
+        }
+        if let Some(e) = self.tail {
+            if !(e.is_finite() && e > 0.0) {
+                return Err(SolverError::BadParameter {
+                    name: "radial.tail",
+                    value: e,
+                    reason: "the tail tolerance must be finite and > 0",
                 });
             }
         }
@@ -535,6 +549,25 @@ pub struct RadialPop<T> {
     ledger: Vec<RadialLedger>,
     history: Vec<f64>,
     steps: usize,
+    tails: Vec<TailTrack>,
+}
+
+/// Steps over which the tail's predicted total must be stable.
+pub const TAIL_WINDOW: usize = 50;
+
+/// Per channel: what the geometric tail needs.
+#[derive(Debug, Clone, Default)]
+struct TailTrack {
+    /// Σ_m R^m so far (the initial packets included).
+    visits: f64,
+    /// R^m/R^{m−1} of the last step.
+    rho: f64,
+    /// Absorbed and escaped in the last step.
+    last_loss: [f64; 2],
+    /// Σ_m R^m + R^m ρ/(1 − ρ) after each step.
+    predicted: Vec<f64>,
+    /// The step at which the tail was added and R/P_inj then.
+    done: Option<(usize, f64)>,
 }
 
 impl<T: Real> RadialPop<T> {
@@ -671,6 +704,7 @@ impl<T: Real> RadialPop<T> {
             acc: vec![T::zero(); len * nc * ACC],
             sigma,
             ledger: vec![RadialLedger::default(); nc],
+            tails: vec![TailTrack::default(); nc],
             history: Vec::new(),
             steps: 0,
             grid,
@@ -717,6 +751,7 @@ impl<T: Real> RadialPop<T> {
             0.0
         });
         self.ledger[ch].in_flight += q;
+        self.tails[ch].visits += q;
         let o = (cell * self.nc + ch) * ACC;
         let w = self.weight[cell];
         self.acc[o] = self.acc[o] + T::c(q) * w;
@@ -862,11 +897,29 @@ impl<T: Real> RadialPop<T> {
         let mut worst = 0f64;
         for ch in 0..nc {
             let led = &mut self.ledger[ch];
+            let mut lost = [0.0; 2];
             for shell in &losses {
-                led.absorbed += shell[ch][0];
-                led.escaped += shell[ch][1];
+                lost[0] += shell[ch][0];
+                lost[1] += shell[ch][1];
             }
+            led.absorbed += lost[0];
+            led.escaped += lost[1];
+            let before = led.in_flight;
             led.in_flight = flight.iter().map(|s| s[ch]).sum();
+            let tr = &mut self.tails[ch];
+            tr.last_loss = lost;
+            tr.visits += led.in_flight;
+            tr.rho = if before > 0.0 {
+                led.in_flight / before
+            } else {
+                0.0
+            };
+            let rest = if tr.rho < 1.0 {
+                led.in_flight * tr.rho / (1.0 - tr.rho)
+            } else {
+                f64::INFINITY
+            };
+            tr.predicted.push(tr.visits + rest);
             let r = if led.injected > 0.0 {
                 led.in_flight / led.injected
             } else {
@@ -885,7 +938,20 @@ impl<T: Real> RadialPop<T> {
     /// Steps until R^m/P_inj < `tolerance` in every channel (0: never) or `max_iterations`
     /// steps in total.
     pub fn run(&mut self, tolerance: f64, max_iterations: usize) -> Stop {
+        self.run_with_tail(tolerance, max_iterations, None)
+    }
+
+    /// [`RadialPop::run`] with the geometric tail of [`RadialConfig::tail`].
+    pub fn run_with_tail(
+        &mut self,
+        tolerance: f64,
+        max_iterations: usize,
+        tail: Option<f64>,
+    ) -> Stop {
         loop {
+            if let Some(eps) = tail {
+                self.try_tail(eps);
+            }
             if let Some(&r) = self.history.last() {
                 if !r.is_finite() {
                     return Stop::NonFinite;
@@ -912,6 +978,81 @@ impl<T: Real> RadialPop<T> {
             history: self.history.clone(),
             steps: self.steps,
             stop,
+            tail: self.tails.iter().map(|t| t.done).collect(),
+        }
+    }
+
+    /// Ends every channel whose predicted Σ_m R^m has been stable to `eps` over
+    /// [`TAIL_WINDOW`] steps: φ += Q·w·ρ/(1 − ρ), J likewise with a, and the power in flight
+    /// is booked as absorbed and escaped in the proportions of the last step.
+    fn try_tail(&mut self, eps: f64) {
+        let nc = self.nc;
+        let mut changed = false;
+        for ch in 0..nc {
+            let tr = &self.tails[ch];
+            let m = tr.predicted.len();
+            if tr.done.is_some() || m <= TAIL_WINDOW || self.ledger[ch].in_flight <= 0.0 {
+                continue;
+            }
+            // Guards: before light reaches a boundary or is absorbed, R^m is conserved to
+            // rounding (ρ = 1 − 10⁻¹⁶) and any prediction is noise.
+            let led = &self.ledger[ch];
+            if tr.rho >= 1.0 - 1e-9 || led.injected - led.in_flight < 1e-3 * led.injected {
+                continue;
+            }
+            let (now, then) = (tr.predicted[m - 1], tr.predicted[m - 1 - TAIL_WINDOW]);
+            if !(now.is_finite() && (now - then).abs() <= eps * now) {
+                continue;
+            }
+            let f = tr.rho / (1.0 - tr.rho);
+            let [da, de] = tr.last_loss;
+            let cells = self.weight.len();
+            for cell in 0..cells {
+                let s = (cell * nc + ch) * S;
+                let (q, a) = (self.state[s].f(), self.state[s + 1].f());
+                if q == 0.0 {
+                    continue;
+                }
+                let o = (cell * nc + ch) * ACC;
+                let w = self.weight[cell];
+                self.acc[o] = self.acc[o] + T::c(f * q) * w;
+                self.acc[o + 1] = self.acc[o + 1] + T::c(f * q * a) * w;
+                self.state[s] = T::zero();
+                self.state[s + 1] = T::zero();
+            }
+            let led = &mut self.ledger[ch];
+            let r = led.in_flight;
+            let (fa, fe) = if da + de > 0.0 {
+                (da / (da + de), de / (da + de))
+            } else {
+                (1.0, 0.0)
+            };
+            led.absorbed += r * fa;
+            led.escaped += r * fe;
+            led.in_flight = 0.0;
+            let frac = if led.injected > 0.0 {
+                r / led.injected
+            } else {
+                0.0
+            };
+            self.tails[ch].done = Some((self.steps, frac));
+            changed = true;
+        }
+        if changed {
+            let worst = self
+                .ledger
+                .iter()
+                .map(|l| {
+                    if l.injected > 0.0 {
+                        l.in_flight / l.injected
+                    } else {
+                        0.0
+                    }
+                })
+                .fold(0f64, f64::max);
+            if let Some(h) = self.history.last_mut() {
+                *h = worst;
+            }
         }
     }
 }
@@ -936,6 +1077,9 @@ pub struct RadialSolution<T> {
     pub steps: usize,
     /// Why it stopped.
     pub stop: Stop,
+    /// Per channel: the step at which the geometric tail was added and R/P_inj then
+    /// (`None`: iterated to the end).
+    pub tail: Vec<Option<(usize, f64)>>,
 }
 
 impl<T: Real> RadialSolution<T> {
@@ -1071,7 +1215,7 @@ pub fn solve_point<T: Real>(
     let grid = RadialGrid::new(position, config.n_a, config.n_r, r_max);
     let mut pop = RadialPop::<T>::new(medium, grid);
     pop.inject(intensity);
-    let stop = pop.run(config.tolerance, config.max_iterations);
+    let stop = pop.run_with_tail(config.tolerance, config.max_iterations, config.tail);
     Ok(pop.solution(stop))
 }
 
