@@ -330,6 +330,7 @@ pub static EXPERIMENTS: &[ExperimentEntry] = &[
     ExperimentEntry::of::<crate::pop_cube::PopCube>(),
     ExperimentEntry::of::<crate::pop_convergence::PopConvergence>(),
     ExperimentEntry::of::<crate::pop_residuum::PopResiduum>(),
+    ExperimentEntry::of::<crate::pop_radial::PopRadial>(),
 ];
 
 /// The registered experiment called `name`.

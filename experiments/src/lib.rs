@@ -31,6 +31,7 @@ pub mod point_source;
 pub mod point_source_analytic;
 pub mod pop_convergence;
 pub mod pop_cube;
+pub mod pop_radial;
 pub mod pop_residuum;
 pub mod pt_point_source;
 pub mod pt_render;
