@@ -63,6 +63,9 @@
 //!   or [`RadialConfig::r_max`] when set: the spec's Fig 10 numbers (r₀ = 0.087 m at 32
 //!   shells) use r_max = R = 2.5 m, the sphere's radius, not the box corner (4.33 m, which
 //!   gives r₀ = 0.150 m). q and r₀ for N_a = N_r = 32, r_max = 2.5: see `geometry_of_fig10`.
+//! * **Light position (ours).** Any finite position, inside or outside the medium's box (cells
+//!   outside the box are vacuum); a non-finite position, a wrong number of intensities or a
+//!   negative or non-finite intensity are typed errors (`bad_inputs_are_typed_errors`).
 //! * **Solid angles.** Σ Ω_t = 4π to 1e-9 for N_a ∈ {2, 3, 4, 5, 8, 17, 32} (T15).
 //! * **D18, topology.** Neighbours of (i, j): (i ± 1, j), (i, j ± 1); across the square's edge
 //!   the mirrored texel ((0, N−1−j) for i − 1 < 0, (N−1, N−1−j) for i + 1 = N, and the same
