@@ -332,6 +332,7 @@ pub static EXPERIMENTS: &[ExperimentEntry] = &[
     ExperimentEntry::of::<crate::pop_residuum::PopResiduum>(),
     ExperimentEntry::of::<crate::pop_ordinates::PopOrdinates>(),
     ExperimentEntry::of::<crate::pop_weaknesses::PopWeaknesses>(),
+    ExperimentEntry::of::<crate::pop_radial::PopRadial>(),
 ];
 
 /// The registered experiment called `name`.

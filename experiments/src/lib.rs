@@ -32,6 +32,7 @@ pub mod point_source_analytic;
 pub mod pop_convergence;
 pub mod pop_cube;
 pub mod pop_ordinates;
+pub mod pop_radial;
 pub mod pop_residuum;
 pub mod pop_weaknesses;
 pub mod pt_point_source;

@@ -67,6 +67,7 @@ pub mod phase;
 pub mod rng;
 pub mod shard;
 pub mod slab;
+pub mod sphere;
 pub mod tracking;
 pub mod volume;
 pub(crate) mod world;

@@ -46,7 +46,10 @@
 //! upsampling guided by σs (D19; trilinear as the control; T14 and the W10 energy
 //! measurement there), and POP's own image ([`upsample::view_image`]: the camera as Eq 8's
 //! observer, σs·L_acc raymarched through the pipeline's view-dependent source hook
-//! `pipeline::raymarch::Term::ViewSource`). Importance propagation (Sec 5.2) is not built;
+//! `pipeline::raymarch::Term::ViewSource`). Point lights propagate on radial octahedral grids (Sec 6, spec D16–D18) in [`radial`]:
+//! [`solve_point`] and [`RadialSolution::fluence_on`]; its own docs hold the equations, the
+//! decisions with their measurements and T15 (not wired into [`method::PopMethod`] yet,
+//! CPU only). Importance propagation (Sec 5.2) is not built;
 //! the GPU kernel propagates directional and environment ordinates only (what the CPU code
 //! does), and the grids, resampling and links are still built on the host.
 //!
@@ -220,6 +223,7 @@ pub mod grid;
 pub mod kernel;
 pub mod method;
 pub mod probe;
+pub mod radial;
 pub mod residuum;
 #[cfg(test)]
 mod tests;
@@ -231,6 +235,7 @@ pub use gpu::GpuPop;
 pub use grid::{PropagationGrid, frame};
 pub use kernel::{Fractions, cumulative, decay, fractions, hg};
 pub use method::{POP, PopMethod};
+pub use radial::{RadialConfig, RadialSolution, solve_point};
 pub use upsample::{Slot, Upsample};
 
 use crate::method::Stop;

@@ -1,0 +1,2 @@
+//! Binary of [`experiments::pop_radial`].
+experiments::experiment_main!(experiments::pop_radial::PopRadial);
