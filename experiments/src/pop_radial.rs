@@ -20,8 +20,9 @@
 //! **Cost** (measured on the 2 shared cores at load average 5–7, default flags): 90.7 s
 //! wall, 54 s CPU, nearly all of it POP converged at g = 0, 0.3, 0.6 (22, 29, 32 s:
 //! 3448–3754 steps of 32² × 32 cells × 3 channels); the path tracer takes 0.2–0.8 s per
-//! (σs, g) at 4·10⁵ paths. The issue's ≤ 60 s holds in CPU time, not in wall time on that
-//! loaded machine. `--quick` (16² × 16): 2.7 s wall (measured with 10⁴ paths).
+//! (σs, g) at 4·10⁵ paths. Rerun by `figures --only pop_radial` on the 2-vCPU AMD EPYC with
+//! one other job compiling: 30.3 s wall, 56.6 s CPU, within the ≤ 60 s aimed at.
+//! `--quick` (16² × 16): 2.7 s wall (measured with 10⁴ paths).
 
 use crate::common::{CommonArgs, Ctx, list_item, progress};
 use crate::experiment::{BackendSupport, Experiment, Promise};
