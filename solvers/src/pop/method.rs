@@ -27,10 +27,41 @@
 //! (the paper's prefilter a_n = (1 − w_n/N)^β, parameter `beta`, default 1). The literal
 //! Eq 8 ([`super::Eq8::Literal`]) changes only the view-dependent accumulator, which the
 //! pipeline does not read (its raymarch takes φ), so it is not a variant here.
+//! * `residuum`: the isotropic residuum (POP Sec 5.4, Eqs 9–10; [`super::residuum`]): every
+//!   ordinate propagates to the switch iteration m′ (parameter `switch`; 0 = Eq 10 with
+//!   ε_a = 0.1), clamped to [N, `max_steps`], then the power in flight is merged by the
+//!   power-conserving splat into one medium-aligned grid of 2N cells across and propagates
+//!   isotropically for `iso` steps (0: until R/P_inj < [`Tolerance::rel`], at most
+//!   `max_steps`). The paper's Fig 8: `switch=20`, `iso=20`. What is in flight after the
+//!   last isotropic step is dropped (W14) and reported.
+//! * `residuum-fld` (**ours, not the paper's**; spec §1.9): the same switch, then the power
+//!   in flight becomes the volume source of an FLD-LP solve on the solve grid
+//!   ([`super::residuum::Residuum::Fld`]; its R̄/j̄ tolerance is [`Tolerance::rel`], 10⁻⁶ at
+//!   `rel` = 0), whose φ is added. On the Fig 12 cube at g = 0.7 it brings the volume-mean φ
+//!   from POP's 3.52 to 1.61 (path tracer 0.89; `residuum.rs`).
+//!
+//! Both residuum variants run on the CPU only (f32 ordinate grids are allowed; the isotropic
+//! and FLD parts are f64): on the GPU they are [`SolverError::Unsupported`], never a silent
+//! CPU run. Their φ obeys the same contract as `pop`'s (the exact uncollided beam is
+//! subtracted; the clamp m′ ≥ N lets the beam cross the grid before the switch). `steps` is
+//! the ordinate iterations up to the switch plus the isotropic steps (or FLD's iterations);
+//! the observer sees the ordinates' R^m/P_inj up to the switch and the isotropic grid's after
+//! it; the [`Balance`] spans the switch (injected into the ordinate grids; absorbed and left
+//! in the ordinate grids and after the switch; what the isotropic residuum drops is in
+//! neither, [`PopTrace::dropped`]). **The log:** [`PopMethod::solve_traced`] returns the
+//! switch iteration with its Eq 10 values and clamp ([`super::residuum::SwitchIteration`]),
+//! the power handed over and dropped, in [`PopTrace`]; [`Method::solve`] erases it.
+//!
 //! **Parameters:** `cells` (N, cells per axis of every ordinate grid; default 0 = the solve
 //! grid's largest dimension up to [`DEFAULT_CELLS_MAX`], so on solve grids up to 32³ an axis
 //! ordinate's cells are the solve grid's voxels),
-//! `ordinates` (per environment light, default 64, the paper's Fig 14), `beta`.
+//! `ordinates` (per environment light, default 64, the paper's Fig 14), `beta`, `switch`,
+//! `iso` (the residuum variants only; elsewhere a typed error).
+//!
+//! **In the accuracy atlas:** [`Method::step_settings`] is the paper's fixed M = 16
+//! ([`PAPER_SETTINGS`]; one step is one propagation iteration), and
+//! [`Method::param_settings`] adds 8 and 216 ordinates per environment light (rendered only
+//! on scenes with an environment light) and the two residuum variants.
 //!
 //! **Measured in the pipeline** (`pipeline.rs`, `every_registered_method_…`: the 16³ vacuum
 //! cloud, albedo 0.9, g = 0.4, one directional light, downsample 2, f64): POP's mean

@@ -26,6 +26,50 @@
 //!   isotropic grid, P_inj: injected into the ordinate grids), or [`IsoResiduum::iterations`]
 //!   steps (the paper's "20 isotropic iterations"); what is still in flight then is dropped
 //!   and reported (W14).
+//!
+//! ## The FLD residuum ([`Residuum::Fld`]; ours, not the paper's)
+//! Spec §1.9's extension: the same switch (Eq 10 or fixed, clamped to [N_d, M_max]), then
+//! the power in flight in the ordinate grids is splatted onto the medium's voxels with the
+//! same adjoint-of-trilinear weights ([`merge`] onto an [`IsoGrid`] that matches the voxels),
+//! so ∫ j dV = Σ Q exactly, and j = Q/Δl³ (power per volume, the unit of FLD's source)
+//! becomes the volume source of one FLD solve per channel ([`crate::fld::solve`], CPU f64,
+//! FLD-LP, ω = 1.8, the FLD paper's vacuum face, to R̄/j̄ < 10⁻⁶ or the method's
+//! tolerance). Decisions (ours):
+//! * **Medium.** Similarity-scaled, σs' = (1 − g)σs, σt' = σa + σs': the light is isotropic
+//!   at the switch (that is the switch's premise) but keeps scattering with the phase
+//!   function, so it diffuses with D = 1/(3σtr) (spec §1.9), not with the FLD paper's
+//!   isotropic σs.
+//! * **Boundary.** The medium's grid padded by one vacuum voxel per side, so no medium voxel
+//!   lies in FLD's Dirichlet layer (FLD Section 5); φ is read back on the medium's voxels.
+//! * **No cell counted twice.** The light in flight at the switch is in the ordinate grids'
+//!   φ already (φ = Σ_{m ≤ m′} L^m); FLD's φ counts it again from the cell it sits in, so the
+//!   solve takes L^{m′} (and L^{m′}a^{m′}) out of the ordinate grids' φ and J (clamped at 0).
+//! * **Accounting.** [`FldRun::handed`] (Σ of the ordinate ledgers' `in_flight`) equals
+//!   [`FldRun::source_power`] (∫ j dV) to rounding; FLD absorbs ∫ σa φ dV and, conservative
+//!   to its tolerance (`crate::fld`, "Energy balance"), lets the rest out: in
+//!   [`ResiduumSolution::balance`] its exit is source − absorbed (FLD defines no outflow of
+//!   its own here), so nothing is dropped.
+//! * **The vacuum face.** The FLD paper's face: on the Fig 12 cube at g = 0.7 it gives a
+//!   volume-mean φ of 1.609, the Marshak face ([`crate::fld::VacuumFace::Marshak`]) 1.689,
+//!   path tracer 0.891.
+//!
+//! **Measured on the Fig 12 cube** (unit cube, σs = 4, albedo 1, 16³ cells = voxels, one
+//! ordinate d = +x of unit irradiance, f64, tolerance 10⁻⁶; path tracer's current tally,
+//! 2·10⁵ paths; `reference/tests/pop_residuum_fld.rs`), volume-mean total φ:
+//!
+//! | g | path tracer | `pop` (converged) | `pop:residuum` (Eq 10) | `pop:residuum-fld` (Eq 10) | m′ = 20: residuum / FLD |
+//! |---|---|---|---|---|---|
+//! | 0.7 | 0.8912 ± 0.0010 | 3.516 (800 it.) | 5.463 | **1.609** | 5.761 / 1.396 |
+//! | 0.96 | 0.9522 ± 0.0004 | 1.0580 (32 it.) | 1.0580 (no switch) | 1.0580 (no switch) | 1.1147 / 1.0616 |
+//!
+//! At g = 0.7 Eq 10 switches at m′ = ⌈25.82⌉ = 26 (no clamp) with 62.3 % of the injected
+//! power in flight (70.0 % at m′ = 20); the isotropic residuum then walks 2929 steps on 32³
+//! (its lattice walk is longer than POP's own: brighter still, W14), FLD-LP converges in 91
+//! iterations and leaves the volume mean 1.81× the path tracer's instead of 3.95× (|FLD − PT|
+//! is 0.27 of |POP − PT|; the test asserts < 0.4). The source's ∫ j dV matched the power in
+//! flight to 2.5·10⁻¹⁵ relative (asserted 10⁻¹²). At g = 0.96 Eq 10 gives m′ = 225.6, after
+//! POP has converged (32 iterations), so neither residuum runs; at the paper's m′ = 20
+//! (2.75 % in flight) the FLD residuum moves φ by +0.34 %, the isotropic one by +5.4 %.
 
 use super::cpu::{CpuPop, Ledger};
 use super::grid::{MipLevel, box_filter, mip_level, trilinear};
