@@ -43,18 +43,20 @@
 //! points on `nebula` and `shell_core` only: it takes no volume source (`emissive_cloud`,
 //! `plume`) and refuses point lights (`plume`), `skipped.csv`.
 //! POP's additions to a full run, measured on `nebula` alone (`--scenes scenes/nebula.toml
-//! --methods pop --out <scratch>`, 2 cores at a load of 5–6 from other jobs, so every time is
-//! about 3.5× the committed run's: `pop` ds=4 tol=1e-2 6.9 s here, 1.8 s there): `pop`
-//! `ds=2 steps=16` 6.9 s (error 0.536; converged at ds=2 1e-3: 12.0 s, 1.138),
-//! `pop:residuum` 71.9 s (error 1.221; 1443 steps per channel in all, the ordinates' up to
-//! the switch and the isotropic ones on 64³ × 3 channels to 10⁻³), `pop:residuum-fld` 19.9 s (error 0.366, POP's best point;
-//! its FLD-LP solves stop at the 5000-iteration cap, not at R̄/j̄ < 10⁻³: the power in
-//! flight splatted onto nebula's vacuum voxels is a source where FLD stalls, `crate::fld`'s
-//! known limitation), 98.7 s together against 76.6 s for `pop`'s eight ladder points;
-//! `shell_core` adds a similar amount (not measured alone). On `environment_sphere` (16³,
-//! constant environment, `--reference-spp 1024`) the ordinate settings render: converged at
-//! ds=2, N = 8 / 64 / 216: error 0.290 / 0.266 / 0.264 in 0.06 / 0.46 / 1.46 s; at M = 16
-//! 0.234 / 0.216 / 0.215; `pop:residuum` 0.334, `pop:residuum-fld` 0.181.
+//! --methods pop --out <scratch>`, 2 cores shared with other jobs' compiles, load 3–6, so
+//! every time is several times the committed run's: `pop` ds=4 tol=1e-2 10.5 s here, 1.8 s
+//! there): `pop` `ds=2 steps=16` 11.1 s (error 0.536; converged at ds=2 1e-3: 17.1 s,
+//! 1.138), `pop:residuum` 80.9 s (error 1.221; 1443 steps per channel in all, the
+//! ordinates' up to the switch and the isotropic ones on 64³ × 3 channels to 10⁻³),
+//! `pop:residuum-fld` 4.7 s (error 0.350, POP's best point by far; before the vacuum voxels'
+//! power was taken out of its FLD source it hit FLD's 5000-iteration cap, 19.9 s, error
+//! 0.366: `solvers::pop::residuum`, "Vacuum voxels"): 96.7 s together against 117.1 s for
+//! `pop`'s eight ladder points in the same run; `shell_core` adds its own share (not
+//! measured alone). On `environment_sphere` (16³, constant environment, `--reference-spp
+//! 1024`) the ordinate settings render: converged at ds=2, N = 8 / 64 / 216: error 0.290 /
+//! 0.266 / 0.264 in 0.06 / 0.46 / 1.46 s; at M = 16 0.234 / 0.216 / 0.215; `pop:residuum`
+//! 0.334, `pop:residuum-fld` 0.181 (that run predates the vacuum change; the sphere's
+//! vacuum corners held power in flight).
 //!
 //! **Lights a method refuses.** A method that takes the lights itself refuses point and
 //! sphere lights; where the registry offers its baked form (`Method::with_baked_lights`:

@@ -79,6 +79,7 @@ fn fld_residuum_keeps_the_books_and_is_closer_to_the_path_tracer_at_g07() {
         .sum();
     assert!(handed > 0.5, "{handed}");
     assert_eq!(f.handed[0], handed);
+    assert_eq!(f.streamed, [0.0]);
     let rel = (f.source_power[0] - handed).abs() / handed;
     assert!(
         rel < 1e-12,
