@@ -31,6 +31,33 @@
 //! CPU-seconds (`--methods lpm --grid 2:steps=1:f32,2:steps=2:f32,2:steps=3:f32`, user time,
 //! at a load of about 8 on 2 cores), three quarters of it plume's point-light raymarch.
 //!
+//! **Settings of a method's own parameters** (`Method::param_settings`, a registry hook: no
+//! method is named here). Each runs at downsampling [`STEP_DOWNSAMPLE`] in f32, converged
+//! ([`STEP_TOLERANCE`]) and at its own fixed step counts ([`param_settings`]). POP has two
+//! kinds: 8 and 216 ordinates per environment light (with its default 64, the paper's
+//! N ∈ {8, 64, 216}; labelled `… ordinates=8`, rendered only on scenes with an environment
+//! light, where N matters: none of the four datasets has one, so they add nothing to a full
+//! run), and its variants `pop:residuum` (POP Sec 5.4, Eq 10 switch) and `pop:residuum-fld`
+//! (ours), recorded as methods of their own. POP's fixed step count is the paper's M = 16
+//! (`pop`'s `ds=2 steps=16 f32`; orders.csv has it beside the converged point). POP has
+//! points on `nebula` and `shell_core` only: it takes no volume source (`emissive_cloud`,
+//! `plume`) and refuses point lights (`plume`), `skipped.csv`.
+//! POP's additions to a full run, measured on `nebula` alone (`--scenes scenes/nebula.toml
+//! --methods pop --out <scratch>`, 2 cores shared with other jobs' compiles, load 3–6, so
+//! every time is several times the committed run's: `pop` ds=4 tol=1e-2 10.5 s here, 1.8 s
+//! there): `pop` `ds=2 steps=16` 11.1 s (error 0.536; converged at ds=2 1e-3: 17.1 s,
+//! 1.138), `pop:residuum` 80.9 s (error 1.221; 1443 steps per channel in all, the
+//! ordinates' up to the switch and the isotropic ones on 64³ × 3 channels to 10⁻³),
+//! `pop:residuum-fld` 4.7 s (error 0.350, POP's best point by far; before the vacuum voxels'
+//! power was taken out of its FLD source it hit FLD's 5000-iteration cap, 19.9 s, error
+//! 0.366: `solvers::pop::residuum`, "Vacuum voxels"): 96.7 s together against 117.1 s for
+//! `pop`'s eight ladder points in the same run; `shell_core` adds its own share (not
+//! measured alone). On `environment_sphere` (16³, constant environment, `--reference-spp
+//! 1024`) the ordinate settings render: converged at ds=2, N = 8 / 64 / 216: error 0.290 /
+//! 0.266 / 0.264 in 0.06 / 0.46 / 1.46 s; at M = 16 0.234 / 0.216 / 0.215; `pop:residuum`
+//! 0.334, `pop:residuum-fld` 0.181 (that run predates the vacuum change; the sphere's
+//! vacuum corners held power in flight).
+//!
 //! **Lights a method refuses.** A method that takes the lights itself refuses point and
 //! sphere lights; where the registry offers its baked form (`Method::with_baked_lights`:
 //! `lpm` → `lpm:baked`, spec D13's first-collision injection, which agrees with `lpm` to
@@ -209,12 +236,21 @@ pub struct Setting {
     /// A fixed step count instead of the tolerance (`steps=K` in the label; a method's
     /// [`solvers::method::StepSettings`], e.g. LPM's scattering orders).
     pub steps: Option<usize>,
+    /// A setting of the method's own parameters or a variant of it
+    /// ([`solvers::method::Method::param_settings`]): this method renders instead of the
+    /// entry's, and the point is recorded under its name.
+    pub method: Option<MethodRef>,
+    /// Rendered only on scenes with an environment light
+    /// ([`solvers::method::ParamSetting::environment_only`]).
+    pub environment_only: bool,
 }
 
 impl Setting {
-    /// The pipeline settings of `method` at this setting ([`grid_config`], with exactly
-    /// `steps` steps when the setting fixes them).
+    /// The pipeline settings of `method` (or of the setting's own [`Setting::method`]) at
+    /// this setting ([`grid_config`], with exactly `steps` steps when the setting fixes
+    /// them).
     pub fn config(&self, method: &MethodRef) -> PipelineConfig {
+        let method = self.method.as_ref().unwrap_or(method);
         let mut c = grid_config(method, self.downsample, self.tolerance);
         if let Some(k) = self.steps {
             c.tolerance = Tolerance::fixed_steps(k);
@@ -269,9 +305,12 @@ impl From<Renderer> for MethodEntry {
 
 impl MethodEntry {
     /// Its settings (`quick` for CI-sized runs; `spp` is the path tracer's ladder; `grid`
-    /// replaces the grid methods' ladder, fixed step counts included). A grid method whose
-    /// registry entry has fixed step counts ([`solvers::method::Method::step_settings`]) runs
-    /// each of them at [`STEP_DOWNSAMPLE`] in f32 after the ladder.
+    /// replaces the grid methods' ladder, fixed step counts and parameter settings
+    /// included). A grid method whose registry entry has fixed step counts
+    /// ([`solvers::method::Method::step_settings`]) runs each of them at [`STEP_DOWNSAMPLE`]
+    /// in f32 after the ladder; then each of its parameter settings
+    /// ([`solvers::method::Method::param_settings`]) at that downsampling, converged
+    /// ([`STEP_TOLERANCE`], f32) and at its own fixed step counts ([`param_settings`]).
     pub fn settings(&self, quick: bool, spp: &[u32], grid: Option<&[Setting]>) -> Vec<Setting> {
         match (&self.renderer, grid) {
             (Renderer::PathTracer, _) => pt_settings(quick, spp),
@@ -286,8 +325,17 @@ impl MethodEntry {
                             .map(|&k| step_setting(d, k, Precision::F32)),
                     );
                 }
+                v.extend(param_settings(m, quick));
                 v
             }
+        }
+    }
+
+    /// The method a setting renders: the setting's own ([`Setting::method`]) or the entry's.
+    fn renderer_for(&self, setting: &Setting) -> Renderer {
+        match &setting.method {
+            Some(m) => Renderer::Pipeline(m.clone()),
+            None => self.renderer.clone(),
         }
     }
 
@@ -310,6 +358,7 @@ impl MethodEntry {
         match &self.renderer {
             Renderer::PathTracer => run_pt(job, ctx),
             Renderer::Pipeline(m) => {
+                let m = job.setting.method.as_ref().unwrap_or(m);
                 let label = format!(
                     "{} {m} [{}] {}",
                     job.scene.name, job.setting.label, job.backend
@@ -375,6 +424,8 @@ fn pt_settings(_quick: bool, spp: &[u32]) -> Vec<Setting> {
             precision: Precision::F64,
             spp: s,
             steps: None,
+            method: None,
+            environment_only: false,
         })
         .collect()
 }
@@ -419,7 +470,50 @@ fn grid_setting(downsample: usize, tolerance: f64, precision: Precision) -> Sett
         precision,
         spp: 0,
         steps: None,
+        method: None,
+        environment_only: false,
     }
+}
+
+/// The settings of `method`'s own parameters ([`solvers::method::Method::param_settings`]):
+/// each at [`STEP_DOWNSAMPLE`] (quick: 4) in f32, converged at [`STEP_TOLERANCE`] and at its
+/// fixed step counts. A setting whose method keeps the family's name (a parameter, e.g. POP's
+/// `ordinates=8`) appends its label to the setting's (`ds=2 tol=1e-3 f32 ordinates=8`); a
+/// variant (`pop:residuum`) is a method of its own in `points.csv`.
+pub fn param_settings(method: &MethodRef, quick: bool) -> Vec<Setting> {
+    let d = step_downsample(quick);
+    let mut v = Vec::new();
+    for ps in method.param_settings() {
+        let own = MethodRef::new(ps.method);
+        let suffix = (own.name() == method.name()).then(|| ps.label.clone());
+        let mut list = vec![grid_setting(d, STEP_TOLERANCE, Precision::F32)];
+        if let Some(st) = own.step_settings() {
+            list.extend(
+                st.counts
+                    .iter()
+                    .map(|&k| step_setting(d, k, Precision::F32)),
+            );
+        }
+        for mut s in list {
+            if let Some(l) = &suffix {
+                s.label = format!("{} {l}", s.label);
+            }
+            s.method = Some(own.clone());
+            s.environment_only = ps.environment_only;
+            v.push(s);
+        }
+    }
+    v
+}
+
+/// Whether `scene` has an environment light (where settings that are
+/// [`Setting::environment_only`] render).
+fn has_environment(scene: &Prepared) -> bool {
+    scene.channels.iter().any(|c| {
+        c.lights
+            .iter()
+            .any(|l| matches!(l, solvers::scene::Light::Environment { .. }))
+    })
 }
 
 /// The downsampling of the fixed-step settings: 2 (quick: 4), where the full ladder has
@@ -967,10 +1061,13 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         );
         for m in &methods {
             for st in m.settings(quick, &spp, grid) {
+                if st.environment_only && !has_environment(scene) {
+                    continue;
+                }
                 let backends_run = backends
                     .list(st.precision)
                     .iter()
-                    .filter(|b| m.renderer.supports(b, st.precision))
+                    .filter(|b| m.renderer_for(&st).supports(b, st.precision))
                     .count() as f64;
                 let one = match &m.renderer {
                     Renderer::PathTracer => {
@@ -991,7 +1088,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
     for m in &methods {
         for s in m.settings(quick, &spp, grid) {
             for b in backends.list(s.precision) {
-                if !m.renderer.supports(&b, s.precision) {
+                if !m.renderer_for(&s).supports(&b, s.precision) {
                     continue;
                 }
                 jobs.push((m, s.clone(), b));
@@ -1005,7 +1102,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             println!("{k}\t{}\treference\tspp={ref_spp}\tcpu-f64", scene.name);
             k += 1;
             for (m, s, b) in &jobs {
-                println!("{k}\t{}\t{}\t{}\t{b}", scene.name, m.name, s.label);
+                let name = s
+                    .method
+                    .as_ref()
+                    .map_or_else(|| m.name.clone(), |o| o.name());
+                println!("{k}\t{}\t{name}\t{}\t{b}", scene.name, s.label);
                 k += 1;
             }
         }
@@ -1043,7 +1144,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         });
         let bar = progress(jobs.len() as u64, &args.common, &scene.name);
         for (m, s, b) in &jobs {
-            if !out.unit() {
+            if !out.unit() || (s.environment_only && !has_environment(scene)) {
                 bar.inc(1);
                 continue;
             }
@@ -1053,7 +1154,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                 None => (std::borrow::Cow::Borrowed(*m), None),
                 Some(reason) => match m
                     .baked_stand_in()
-                    .filter(|t| refusal(t, scene, s).is_none())
+                    .filter(|t| s.method.is_none() && refusal(t, scene, s).is_none())
                 {
                     Some(t) => (std::borrow::Cow::Owned(t), Some(m.name.clone())),
                     None => {
@@ -1063,7 +1164,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                         );
                         skipped.push(Skipped {
                             scene: scene.name.clone(),
-                            method: m.name.clone(),
+                            method: s
+                                .method
+                                .as_ref()
+                                .map_or_else(|| m.name.clone(), |o| o.name()),
                             setting: s.label.clone(),
                             backend: b.to_string(),
                             reason,
@@ -1086,7 +1190,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
             let (error, debiased, single, multiple) = errors(scene, &r.images);
             points.push(Point {
                 scene: scene.name.clone(),
-                method: entry.name.clone(),
+                method: s
+                    .method
+                    .as_ref()
+                    .map_or_else(|| entry.name.clone(), |o| o.name()),
                 setting: s.label.clone(),
                 backend: match entry.renderer {
                     Renderer::PathTracer => "cpu-f64".into(),

@@ -126,6 +126,23 @@ fn accuracy_cost_quick_atlas() {
                 "{s}: no {other} beside LPM"
             );
         }
+        // POP where it renders (no emission, no point light): its paper M = 16 and both
+        // residuum variants (`Method::param_settings`), each a finite point; none of the
+        // datasets has an environment light, so no `ordinates=` settings run.
+        if ["nebula", "shell_core"].contains(&s) {
+            for (method, setting) in [
+                ("pop", "ds=4 steps=16 f32"),
+                ("pop:residuum", "ds=4 tol=1e-3 f32"),
+                ("pop:residuum-fld", "ds=4 tol=1e-3 f32"),
+            ] {
+                assert!(
+                    mine.iter()
+                        .any(|p| p.get("method") == method && p.get("setting") == setting),
+                    "{s}: no {method} [{setting}]"
+                );
+            }
+            assert!(!mine.iter().any(|p| p.get("setting").contains("ordinates=")));
+        }
         // The reference's own noise: positive, and small enough at 256 spp to resolve the
         // grid methods' errors (measured 0.048–0.077 over the four quick scenes).
         let noise = mine[0].num("error_stderr");

@@ -503,6 +503,14 @@ pub trait Method: fmt::Debug + Send + Sync {
         None
     }
 
+    /// Settings of its own parameters worth points of their own in the accuracy atlas
+    /// ([`ParamSetting`]; POP: 8 and 216 ordinates per environment light, and its residuum
+    /// variants); none by default. Each is rendered at the atlas's converged setting and at
+    /// its [`Method::step_settings`] counts.
+    fn param_settings(&self) -> Vec<ParamSetting> {
+        Vec::new()
+    }
+
     /// The same method taking the pipeline's baked lights ([`LightInput::Baked`]) instead of
     /// the scene's lights, for a [`LightInput::Direct`] method that has that form (LPM:
     /// `lpm:baked`, spec D13's first-collision injection). A caller that must render a scene
@@ -518,6 +526,21 @@ pub trait Method: fmt::Debug + Send + Sync {
     fn vacuum_face(&self) -> crate::fld::VacuumFace {
         crate::fld::VacuumFace::Paper
     }
+}
+
+/// A setting of a method's own parameters, or a variant of it, that the accuracy atlas
+/// renders beside the method's defaults ([`Method::param_settings`]). The atlas records the
+/// point under `method.name()` and appends `label` to its setting when the name is the
+/// defaults' (a parameter such as `ordinates=8`).
+#[derive(Debug)]
+pub struct ParamSetting {
+    /// What it sets, e.g. `ordinates=8`, or the variant's name (`pop:residuum`).
+    pub label: String,
+    /// The method with that setting.
+    pub method: Box<dyn Method>,
+    /// It changes the result only where a scene has an environment light (POP's ordinates
+    /// per environment light): the atlas renders it on such scenes only.
+    pub environment_only: bool,
 }
 
 /// Named numeric parameters of a method (`omega=1.5`); a family consumes the ones it knows
@@ -754,16 +777,20 @@ mod tests {
     }
 
     /// A family's fixed step counts run exactly that many steps (the atlas labels a point by
-    /// its count), and a baked twin takes the lights its Direct original refuses.
+    /// its count; a method without a volume source, POP, is lit by a directional light
+    /// instead of the emission), and a baked twin takes the lights its Direct original
+    /// refuses.
     #[test]
     fn step_settings_run_exactly_their_counts_and_baked_twins_take_point_lights() {
         let grid = Grid::cube(6, 1.0).unwrap();
-        let mut medium = Medium::homogeneous(grid, 3.0, 0.9).unwrap();
+        let dark = Medium::homogeneous(grid, 3.0, 0.9).unwrap();
+        let mut medium = dark.clone();
         medium.emission[grid.index(3, 3, 3)] = 1.0;
         let point = [Light::Point {
             position: [0.5, 0.5, 1.5],
             power: 1.0,
         }];
+        let sun = [Light::directional([0.0, 0.0, -1.0], 1.0).unwrap()];
         let mut with_steps = 0;
         for fam in METHODS {
             let m = (fam.build)(None, &Params::none()).unwrap();
@@ -772,10 +799,15 @@ mod tests {
                 assert!(!st.unit.is_empty() && !st.counts.is_empty(), "{}", fam.name);
                 assert!(st.counts[0] >= 1, "{}", fam.name);
                 assert!(st.counts.windows(2).all(|w| w[0] < w[1]), "{}", fam.name);
+                let (medium, lights): (&Medium<f64>, &[Light]) = if m.capabilities().volume_source {
+                    (&medium, &[])
+                } else {
+                    (&dark, &sun)
+                };
                 for &k in st.counts {
                     let p = Problem {
-                        medium: &medium,
-                        lights: &[],
+                        medium,
+                        lights,
                         phase: Phase::Isotropic,
                     };
                     let s = m
@@ -822,6 +854,36 @@ mod tests {
         }
         // LPM's orders at least.
         assert!(with_steps >= 1);
+    }
+
+    /// A family's atlas settings ([`Method::param_settings`]) are its own methods, parseable
+    /// by name, with distinct labels, and differ from the defaults in what they print.
+    #[test]
+    fn param_settings_are_the_familys_own_parseable_methods() {
+        let mut any = 0;
+        for fam in METHODS {
+            let m = (fam.build)(None, &Params::none()).unwrap();
+            let settings = m.param_settings();
+            let mut labels: Vec<&str> = settings.iter().map(|p| p.label.as_str()).collect();
+            labels.sort_unstable();
+            labels.dedup();
+            assert_eq!(
+                labels.len(),
+                settings.len(),
+                "{}: duplicate labels",
+                fam.name
+            );
+            for ps in &settings {
+                any += 1;
+                let name = ps.method.name();
+                assert_eq!(name.split(':').next(), Some(fam.name), "{name}");
+                assert_eq!(parse(&name).unwrap().name(), name);
+                assert_ne!(format!("{:?}", ps.method), format!("{m:?}"), "{}", ps.label);
+                // A setting's own settings are not expanded again.
+                assert!(ps.method.param_settings().is_empty(), "{}", ps.label);
+            }
+        }
+        assert!(any >= 1);
     }
 
     #[test]

@@ -28,6 +28,8 @@ method_conformance!(
     lpm: "lpm",
     lpm_baked: "lpm:baked",
     pop: "pop",
+    pop_residuum: "pop:residuum",
+    pop_residuum_fld: "pop:residuum-fld",
     rde: "rde",
 );
 

@@ -165,3 +165,39 @@ fn t24_fig8_residuum_vs_full() {
     assert_eq!(eq10.switch.clamp, residuum::Clamp::None);
     assert!(eq10.iso.is_none() && *d_phi == 0.0);
 }
+
+mod common;
+
+/// The residuum variants have no GPU kernel: on the GPU backend `pop:residuum` and
+/// `pop:residuum-fld` are a typed [`solvers::SolverError::Unsupported`] naming the variant,
+/// never a silent CPU run (lavapipe in CI; skipped with one line without an adapter).
+#[test]
+fn residuum_variants_refuse_the_gpu_with_a_typed_error() {
+    use solvers::method::{self, Problem, Tolerance};
+    use solvers::scene::{Light, Phase};
+    let medium = Medium::homogeneous(Grid::cube(8, 1.0).unwrap(), 4.0, 0.9).unwrap();
+    let sun = [Light::directional([1.0, 0.0, 0.0], 1.0).unwrap()];
+    let p = Problem {
+        medium: &medium,
+        lights: &sun,
+        phase: Phase::HenyeyGreenstein { g: 0.7 },
+    };
+    common::on_backend("gpu", "residuum_variants_refuse_the_gpu", |b| {
+        for spec in ["pop:residuum", "pop:residuum-fld"] {
+            let m = method::parse(spec).unwrap();
+            assert!(!m.capabilities().supports(b), "{spec}");
+            match m.solve(b, &p, &Tolerance::rel(1e-3), &mut |_, _| {}) {
+                Err(solvers::SolverError::Unsupported(msg)) => {
+                    assert!(msg.contains(spec), "{msg}")
+                }
+                other => panic!("{spec} on the GPU: {other:?}"),
+            }
+        }
+        // Plain POP does run there.
+        let pop = method::parse("pop").unwrap();
+        assert!(
+            pop.solve(b, &p, &Tolerance::rel(1e-3), &mut |_, _| {})
+                .is_ok()
+        );
+    });
+}

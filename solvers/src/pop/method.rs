@@ -27,10 +27,41 @@
 //! (the paper's prefilter a_n = (1 − w_n/N)^β, parameter `beta`, default 1). The literal
 //! Eq 8 ([`super::Eq8::Literal`]) changes only the view-dependent accumulator, which the
 //! pipeline does not read (its raymarch takes φ), so it is not a variant here.
+//! * `residuum`: the isotropic residuum (POP Sec 5.4, Eqs 9–10; [`super::residuum`]): every
+//!   ordinate propagates to the switch iteration m′ (parameter `switch`; 0 = Eq 10 with
+//!   ε_a = 0.1), clamped to [N, `max_steps`], then the power in flight is merged by the
+//!   power-conserving splat into one medium-aligned grid of 2N cells across and propagates
+//!   isotropically for `iso` steps (0: until R/P_inj < [`Tolerance::rel`], at most
+//!   `max_steps`). The paper's Fig 8: `switch=20`, `iso=20`. What is in flight after the
+//!   last isotropic step is dropped (W14) and reported.
+//! * `residuum-fld` (**ours, not the paper's**; spec §1.9): the same switch, then the power
+//!   in flight becomes the volume source of an FLD-LP solve on the solve grid
+//!   ([`super::residuum::Residuum::Fld`]; its R̄/j̄ tolerance is [`Tolerance::rel`], 10⁻⁶ at
+//!   `rel` = 0), whose φ is added. On the Fig 12 cube at g = 0.7 it brings the volume-mean φ
+//!   from POP's 3.52 to 1.61 (path tracer 0.89; `residuum.rs`).
+//!
+//! Both residuum variants run on the CPU only (f32 ordinate grids are allowed; the isotropic
+//! and FLD parts are f64): on the GPU they are [`SolverError::Unsupported`], never a silent
+//! CPU run. Their φ obeys the same contract as `pop`'s (the exact uncollided beam is
+//! subtracted; the clamp m′ ≥ N lets the beam cross the grid before the switch). `steps` is
+//! the ordinate iterations up to the switch plus the isotropic steps (or FLD's iterations);
+//! the observer sees the ordinates' R^m/P_inj up to the switch and the isotropic grid's after
+//! it; the [`Balance`] spans the switch (injected into the ordinate grids; absorbed and left
+//! in the ordinate grids and after the switch; what the isotropic residuum drops is in
+//! neither, [`PopTrace::dropped`]). **The log:** [`PopMethod::solve_traced`] returns the
+//! switch iteration with its Eq 10 values and clamp ([`super::residuum::SwitchIteration`]),
+//! the power handed over and dropped, in [`PopTrace`]; [`Method::solve`] erases it.
+//!
 //! **Parameters:** `cells` (N, cells per axis of every ordinate grid; default 0 = the solve
 //! grid's largest dimension up to [`DEFAULT_CELLS_MAX`], so on solve grids up to 32³ an axis
 //! ordinate's cells are the solve grid's voxels),
-//! `ordinates` (per environment light, default 64, the paper's Fig 14), `beta`.
+//! `ordinates` (per environment light, default 64, the paper's Fig 14), `beta`, `switch`,
+//! `iso` (the residuum variants only; elsewhere a typed error).
+//!
+//! **In the accuracy atlas:** [`Method::step_settings`] is the paper's fixed M = 16
+//! ([`PAPER_SETTINGS`]; one step is one propagation iteration), and
+//! [`Method::param_settings`] adds 8 and 216 ordinates per environment light (rendered only
+//! on scenes with an environment light) and the two residuum variants.
 //!
 //! **Measured in the pipeline** (`pipeline.rs`, `every_registered_method_…`: the 16³ vacuum
 //! cloud, albedo 0.9, g = 0.4, one directional light, downsample 2, f64): POP's mean
@@ -43,11 +74,12 @@
 //! emission (POP takes no volume source), grids beyond the memory budget
 //! ([`SolverError::TooLarge`], from [`PopConfig::validate`]).
 
+use super::residuum::{self, FldResiduum, IsoResiduum, Residuum, Switch};
 use super::{Init, PopConfig, PopMedium, Prefilter};
 use crate::gpu::Timer;
 use crate::method::{
-    Balance, Capabilities, DirectLight, Fluence, LightInput, Method, MethodFamily, Params, Problem,
-    Solution, Stop, Tolerance,
+    Balance, Capabilities, DirectLight, Fluence, LightInput, Method, MethodFamily, ParamSetting,
+    Params, Problem, Solution, StepSettings, Stop, Tolerance,
 };
 use crate::{Backend, Grid, Precision, Real, SolverError};
 
@@ -60,6 +92,30 @@ const ENV_ROWS: usize = 32;
 /// full-resolution points to seconds. Set `cells` for finer grids.
 pub const DEFAULT_CELLS_MAX: usize = 32;
 
+/// The paper's fixed iteration count M of the atlas's fixed-step points
+/// ([`Method::step_settings`]): 16, inside the paper's 10–20 (Sec 5.4) and the M of
+/// the spec's Fig 12/13 probes.
+pub const PAPER_SETTINGS: StepSettings = StepSettings {
+    unit: "propagation iterations",
+    counts: &[16],
+};
+
+/// Ordinates per environment light the atlas renders besides the default 64
+/// ([`Method::param_settings`]; the paper's N ∈ {8, 64, 216} of Fig 9).
+pub const ATLAS_ORDINATES: [usize; 2] = [8, 216];
+
+/// What takes over from the ordinate grids at the switch iteration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ResiduumKind {
+    /// Nothing: every ordinate propagates to the tolerance (plain `pop`).
+    #[default]
+    Off,
+    /// The paper's isotropic residuum (Sec 5.4, `pop:residuum`).
+    Isotropic,
+    /// Ours: FLD on the power in flight (`pop:residuum-fld`).
+    Fld,
+}
+
 /// POP with its settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PopMethod {
@@ -71,6 +127,12 @@ pub struct PopMethod {
     pub cells: usize,
     /// Ordinates per environment light.
     pub ordinates: usize,
+    /// The residuum after the switch iteration (variants `residuum`, `residuum-fld`).
+    pub residuum: ResiduumKind,
+    /// The switch iteration m′; 0: Eq 10 with ε_a = 0.1. Clamped to [N_d, M_max] either way.
+    pub switch: usize,
+    /// Isotropic steps after the switch (`residuum`); 0: to the tolerance.
+    pub iso: usize,
 }
 
 impl Default for PopMethod {
@@ -80,8 +142,26 @@ impl Default for PopMethod {
             prefilter: Prefilter::Voronoi,
             cells: 0,
             ordinates: 64,
+            residuum: ResiduumKind::Off,
+            switch: 0,
+            iso: 0,
         }
     }
+}
+
+/// POP's part of a [`Solution`] ([`PopMethod::solve_traced`]): the residuum's log.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PopTrace {
+    /// The switch iteration, its Eq 10 values and its clamp (`None` without residuum).
+    pub switch: Option<residuum::SwitchIteration>,
+    /// Power in flight in the ordinate grids at the switch over the power injected (0 when
+    /// no residuum ran, e.g. every ordinate converged before the switch).
+    pub handed: f64,
+    /// Power still in flight at the end (dropped, spec W14) over the power injected.
+    pub dropped: f64,
+    /// Steps after the switch: isotropic steps (`residuum`) or FLD iterations
+    /// (`residuum-fld`, the largest over the channels); 0 without residuum.
+    pub after_switch: usize,
 }
 
 impl PopMethod {
@@ -99,6 +179,44 @@ impl PopMethod {
         }
     }
 
+    /// The switch rule of the residuum variants: the fixed m′ or Eq 10 (ε_a = 0.1).
+    fn switch_rule(&self) -> Switch {
+        if self.switch > 0 {
+            Switch::Fixed(self.switch)
+        } else {
+            Switch::Eq10 { eps_a: 0.1 }
+        }
+    }
+
+    /// As [`Method::solve`], with the residuum's log in the trace ([`PopTrace`]): the
+    /// switch iteration and its clamp, the power handed over and the power dropped.
+    pub fn solve_traced(
+        &self,
+        backend: &Backend<'_>,
+        problem: &Problem<'_>,
+        tolerance: &Tolerance,
+        observer: &mut dyn FnMut(usize, f64),
+    ) -> Result<Solution<f64, PopTrace>, SolverError> {
+        tolerance.validate()?;
+        match backend {
+            Backend::Cpu(Precision::F64) => {
+                self.run::<f64>(problem, tolerance, observer, residuum::solve::<f64>)
+            }
+            Backend::Cpu(Precision::F32) => {
+                self.run::<f32>(problem, tolerance, observer, residuum::solve::<f32>)
+            }
+            Backend::Gpu(_) if self.residuum != ResiduumKind::Off => {
+                Err(SolverError::Unsupported(format!(
+                    "{}: the residuum runs on the CPU only (the switch, the merge and the isotropic or FLD part have no GPU kernel); use the CPU backend or `pop`",
+                    self.name()
+                )))
+            }
+            Backend::Gpu(ctx) => self.run::<f32>(problem, tolerance, observer, |m, o, c| {
+                super::gpu::solve(ctx, m, o, c).map(residuum::ResiduumSolution::full)
+            }),
+        }
+    }
+
     fn run<T: Real>(
         &self,
         problem: &Problem<'_>,
@@ -108,8 +226,8 @@ impl PopMethod {
             &PopMedium,
             &[super::Ordinate],
             &PopConfig,
-        ) -> Result<super::PopSolution<T>, SolverError>,
-    ) -> Result<Fluence, SolverError> {
+        ) -> Result<residuum::ResiduumSolution<T>, SolverError>,
+    ) -> Result<Solution<f64, PopTrace>, SolverError> {
         let setup = std::time::Instant::now();
         let medium = problem.medium;
         medium.validate()?;
@@ -151,24 +269,41 @@ impl PopMethod {
             PopConfig::fixed::<T>(self.cells_on(&medium.grid), tolerance.max_steps)
         };
         config.init = self.init;
+        config.residuum = match self.residuum {
+            ResiduumKind::Off => Residuum::Off,
+            ResiduumKind::Isotropic => Residuum::Isotropic(IsoResiduum {
+                switch: self.switch_rule(),
+                factor: 2,
+                iterations: (self.iso > 0).then_some(self.iso),
+            }),
+            ResiduumKind::Fld => Residuum::Fld(FldResiduum {
+                switch: self.switch_rule(),
+                tolerance: if tolerance.rel > 0.0 {
+                    tolerance.rel
+                } else {
+                    <f64 as Real>::DEFAULT_TOLERANCE
+                },
+                max_iterations: tolerance.max_steps,
+                ..FldResiduum::eq10()
+            }),
+        };
         let setup_seconds = setup.elapsed().as_secs_f64();
         let t0 = std::time::Instant::now();
         let sol = solve(&pm, &ordinates, &config)?;
         let seconds = t0.elapsed().as_secs_f64();
-        let steps = sol.runs.iter().map(|r| r.steps).max().unwrap_or(0);
+        let runs = &sol.anisotropic.runs;
+        let aniso_steps = runs.iter().map(|r| r.steps).max().unwrap_or(0);
         // The largest R^m/P_inj over the ordinates after each iteration where one was
         // recorded (every step on the CPU, every checkpoint on the GPU), for the observer;
         // an ordinate that has stopped counts with its last value.
-        let mut at: Vec<usize> = sol
-            .runs
+        let mut at: Vec<usize> = runs
             .iter()
             .flat_map(|r| r.history_steps.iter().copied())
             .collect();
         at.sort_unstable();
         at.dedup();
         for m in at {
-            let worst = sol
-                .runs
+            let worst = runs
                 .iter()
                 .filter_map(|r| {
                     let i = r.history_steps.partition_point(|&s| s <= m);
@@ -177,12 +312,41 @@ impl PopMethod {
                 .fold(0.0, |a: f64, &b| a.max(b));
             observer(m, worst);
         }
-        let last_change = sol
-            .runs
-            .iter()
-            .filter_map(|r| r.history.last())
-            .fold(f64::NAN, |a: f64, &b| if a.is_nan() { b } else { a.max(b) });
-        let stop = sol.runs.iter().map(|r| r.stop).fold(Stop::Converged, worse);
+        // After the switch: the isotropic grid's R/P_inj at steps m′ + 1, m′ + 2, …
+        if let Some(iso) = &sol.iso {
+            for (k, &r) in iso.history.iter().enumerate() {
+                observer(aniso_steps + k + 1, r);
+            }
+        }
+        let ordinate_stop = |skip_cap: bool| {
+            runs.iter()
+                .map(|r| r.stop)
+                .filter(|&s| !(skip_cap && s == Stop::Cap))
+                .fold(Stop::Converged, worse)
+        };
+        let (after_switch, last_change, stop) = match (&sol.iso, &sol.fld) {
+            (Some(iso), _) => (
+                iso.steps,
+                iso.history.last().copied().unwrap_or(f64::NAN),
+                worse(iso.stop, ordinate_stop(true)),
+            ),
+            (None, Some(fld)) => (
+                fld.steps.iter().copied().max().unwrap_or(0),
+                fld.residual
+                    .iter()
+                    .copied()
+                    .filter(|r| !r.is_nan())
+                    .fold(f64::NAN, |a: f64, b| if a.is_nan() { b } else { a.max(b) }),
+                fld.stop.iter().copied().fold(ordinate_stop(true), worse),
+            ),
+            (None, None) => (
+                0,
+                runs.iter()
+                    .filter_map(|r| r.history.last())
+                    .fold(f64::NAN, |a: f64, &b| if a.is_nan() { b } else { a.max(b) }),
+                ordinate_stop(false),
+            ),
+        };
         let total = sol.fluence_on(&medium.grid).swap_remove(0);
         let uncollided = crate::method::uncollided_directional(medium, &lights);
         let phi = total
@@ -190,28 +354,28 @@ impl PopMethod {
             .zip(&uncollided)
             .map(|(t, u)| (t - u).max(0.0))
             .collect();
-        let ledger = |f: fn(&super::Ledger) -> f64| {
-            sol.runs
-                .iter()
-                .flat_map(|r| r.ledger.iter())
-                .map(f)
-                .sum::<f64>()
+        let [injected, absorbed, exited, _] = sol.balance(0);
+        let trace = PopTrace {
+            switch: (self.residuum != ResiduumKind::Off).then(|| sol.switch.clone()),
+            handed: sol.handed_fraction(),
+            dropped: sol.dropped_fraction(),
+            after_switch,
         };
         Ok(Solution {
             grid: medium.grid,
             phi,
-            steps,
+            steps: aniso_steps + after_switch,
             last_change,
             stop,
             seconds,
             setup_seconds,
             timer: Timer::WallClock,
             balance: Some(Balance {
-                source: ledger(|l| l.injected),
-                outflow: ledger(|l| l.exited()),
-                absorbed: ledger(|l| l.absorbed),
+                source: injected,
+                outflow: exited,
+                absorbed,
             }),
-            trace: (),
+            trace,
         })
     }
 }
@@ -229,9 +393,11 @@ fn worse(a: Stop, b: Stop) -> Stop {
 
 impl Method for PopMethod {
     fn name(&self) -> String {
-        let base = match (self.init, self.prefilter) {
-            (Init::PaperPerCell, _) => "pop:per-cell",
-            (_, Prefilter::Heuristic { .. }) => "pop:heuristic",
+        let base = match (self.residuum, self.init, self.prefilter) {
+            (ResiduumKind::Isotropic, _, _) => "pop:residuum",
+            (ResiduumKind::Fld, _, _) => "pop:residuum-fld",
+            (_, Init::PaperPerCell, _) => "pop:per-cell",
+            (_, _, Prefilter::Heuristic { .. }) => "pop:heuristic",
             _ => "pop",
         };
         base.into()
@@ -239,7 +405,7 @@ impl Method for PopMethod {
 
     fn capabilities(&self) -> Capabilities {
         Capabilities {
-            gpu: true,
+            gpu: self.residuum == ResiduumKind::Off,
             f64: true,
             volume_source: false,
             anisotropic: true,
@@ -255,18 +421,41 @@ impl Method for PopMethod {
         tolerance: &Tolerance,
         observer: &mut dyn FnMut(usize, f64),
     ) -> Result<Fluence, SolverError> {
-        tolerance.validate()?;
-        match backend {
-            Backend::Cpu(Precision::F64) => {
-                self.run::<f64>(problem, tolerance, observer, super::solve::<f64>)
-            }
-            Backend::Cpu(Precision::F32) => {
-                self.run::<f32>(problem, tolerance, observer, super::solve::<f32>)
-            }
-            Backend::Gpu(ctx) => self.run::<f32>(problem, tolerance, observer, |m, o, c| {
-                super::gpu::solve(ctx, m, o, c)
-            }),
+        self.solve_traced(backend, problem, tolerance, observer)
+            .map(Solution::erase)
+    }
+
+    fn step_settings(&self) -> Option<StepSettings> {
+        (self.residuum == ResiduumKind::Off).then_some(PAPER_SETTINGS)
+    }
+
+    fn param_settings(&self) -> Vec<ParamSetting> {
+        if *self != Self::default() {
+            return Vec::new();
         }
+        let mut v: Vec<ParamSetting> = ATLAS_ORDINATES
+            .iter()
+            .map(|&n| ParamSetting {
+                label: format!("ordinates={n}"),
+                method: Box::new(Self {
+                    ordinates: n,
+                    ..self.clone()
+                }),
+                environment_only: true,
+            })
+            .collect();
+        for kind in [ResiduumKind::Isotropic, ResiduumKind::Fld] {
+            let m = Self {
+                residuum: kind,
+                ..self.clone()
+            };
+            v.push(ParamSetting {
+                label: m.name(),
+                method: Box::new(m),
+                environment_only: false,
+            });
+        }
+        v
     }
 
     fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {
@@ -286,7 +475,7 @@ fn whole(name: &'static str, v: f64, min: f64) -> Result<usize, SolverError> {
         return Err(SolverError::BadParameter {
             name,
             value: v,
-            reason: "must be a whole number in range (cells: 0 = the solve grid's size or ≥ 2; ordinates: ≥ 1)",
+            reason: "must be a whole number in range (cells: 0 = the solve grid's size or ≥ 2; ordinates: ≥ 1; switch, iso: ≥ 0)",
         });
     }
     Ok(v as usize)
@@ -306,13 +495,34 @@ fn build(variant: Option<&str>, params: &Params) -> Result<Box<dyn Method>, Solv
         None => {}
         Some("per-cell") => m.init = Init::PaperPerCell,
         Some("heuristic") => m.prefilter = Prefilter::Heuristic { beta },
+        Some("residuum") => m.residuum = ResiduumKind::Isotropic,
+        Some("residuum-fld") => m.residuum = ResiduumKind::Fld,
         Some(v) => {
             return Err(SolverError::UnknownName {
                 what: "variant of pop",
                 got: v.to_string(),
-                known: "per-cell, heuristic".into(),
+                known: POP.variants.into(),
             });
         }
+    }
+    for (name, slot) in [("switch", &mut m.switch), ("iso", &mut m.iso)] {
+        if let Some(v) = params.get(name) {
+            if m.residuum == ResiduumKind::Off {
+                return Err(SolverError::BadParameter {
+                    name,
+                    value: v,
+                    reason: "only the variants `residuum` and `residuum-fld` have a switch iteration and isotropic steps",
+                });
+            }
+            *slot = whole(name, v, 0.0)?;
+        }
+    }
+    if m.residuum == ResiduumKind::Fld && m.iso > 0 {
+        return Err(SolverError::BadParameter {
+            name: "iso",
+            value: m.iso as f64,
+            reason: "`residuum-fld` hands the residual to FLD, which runs to its tolerance (no isotropic steps)",
+        });
     }
     if let Some(c) = params.get("cells") {
         m.cells = whole("cells", c, 0.0)?;
@@ -335,7 +545,7 @@ pub const POP: MethodFamily = MethodFamily {
     name: "pop",
     title: "principal-ordinates propagation (HG lobes on ordinate-aligned grids; takes the lights itself)",
     paper: "Elek et al., Principal-Ordinates Propagation for real-time rendering of participating media (POP Eqs 1–7, Sec 5.1)",
-    variants: "per-cell, heuristic",
+    variants: "per-cell, heuristic, residuum, residuum-fld",
     params: &[
         (
             "cells",
@@ -348,6 +558,14 @@ pub const POP: MethodFamily = MethodFamily {
         (
             "beta",
             "exponent of the heuristic prefilter (variant `heuristic`, default 1)",
+        ),
+        (
+            "switch",
+            "switch iteration m′ of `residuum`/`residuum-fld` (default 0: POP Eq 10 with ε_a = 0.1; clamped to [N, max steps]; the paper's Fig 8: 20)",
+        ),
+        (
+            "iso",
+            "isotropic steps after the switch of `residuum` (default 0: to the tolerance; the paper's Fig 8: 20)",
         ),
     ],
     build,
@@ -473,5 +691,135 @@ mod tests {
         }
         let s = solve_with("pop", Phase::HenyeyGreenstein { g: 0.9 }, &sun, 8).unwrap();
         assert!(s.phi.iter().sum::<f64>() > 0.0);
+    }
+
+    fn cube_problem(n: usize, albedo: f64) -> Medium<f64> {
+        Medium::homogeneous(Grid::cube(n, 1.0).unwrap(), 4.0, albedo).unwrap()
+    }
+
+    /// `pop:residuum` through the Method interface gives the numbers of a direct
+    /// `residuum::solve` (φ − the exact uncollided beam, same switch), logs the switch and
+    /// its clamp in the trace, and its balance closes across the switch to 10⁻¹² (f64):
+    /// source = outflow + absorbed + what is dropped at the end.
+    #[test]
+    fn residuum_variant_is_residuum_solve_and_keeps_the_books() {
+        let medium = cube_problem(10, 0.95);
+        let d = [0.3, -0.5, 0.8];
+        let sun = [Light::directional(d, 1.5).unwrap()];
+        let phase = Phase::HenyeyGreenstein { g: 0.8 };
+        let p = Problem {
+            medium: &medium,
+            lights: &sun,
+            phase,
+        };
+        let pm = PopMedium::new(std::slice::from_ref(&medium), &[0.8]).unwrap();
+        let o = [super::super::Ordinate::directional(d, 1.5).unwrap()];
+        let lights = crate::method::direct_lights("pop", &sun).unwrap();
+        let unc = crate::method::uncollided_directional(&medium, &lights);
+        for (params, res) in [
+            // The paper's Fig 8 form: m′ = 20, 20 isotropic steps.
+            (
+                Params::none().with("switch", 20.0).with("iso", 20.0),
+                IsoResiduum::paper(20, 20),
+            ),
+            // Eq 10 (g = 0.8, σs = 3.8), isotropic steps to the tolerance.
+            (Params::none(), IsoResiduum::eq10()),
+            // A switch below N_d is clamped up to N = 10.
+            (
+                Params::none().with("switch", 3.0),
+                IsoResiduum {
+                    switch: Switch::Fixed(3),
+                    ..IsoResiduum::eq10()
+                },
+            ),
+        ] {
+            let m = PopMethod {
+                residuum: ResiduumKind::Isotropic,
+                ..PopMethod::default()
+            };
+            let m = match build(Some("residuum"), &params).unwrap().name().as_str() {
+                "pop:residuum" => PopMethod {
+                    switch: params.get("switch").map_or(0, |v| v as usize),
+                    iso: params.get("iso").map_or(0, |v| v as usize),
+                    ..m
+                },
+                other => panic!("{other}"),
+            };
+            let tol = Tolerance::rel(1e-6);
+            let s = m
+                .solve_traced(&Backend::Cpu(Precision::F64), &p, &tol, &mut |_, _| {})
+                .unwrap();
+            let cfg = PopConfig {
+                tolerance: 1e-6,
+                max_iterations: tol.max_steps,
+                residuum: Residuum::Isotropic(res),
+                ..PopConfig::new::<f64>(10)
+            };
+            let direct = residuum::solve::<f64>(&pm, &o, &cfg).unwrap();
+            let want: Vec<f64> = direct.fluence_on(&medium.grid)[0]
+                .iter()
+                .zip(&unc)
+                .map(|(t, u)| (t - u).max(0.0))
+                .collect();
+            assert_eq!(s.phi, want, "{params:?}");
+            let sw = s.trace.switch.clone().unwrap();
+            assert_eq!(sw, direct.switch);
+            let iso = direct.iso.as_ref().unwrap();
+            assert_eq!(s.steps, sw.m + iso.steps);
+            assert_eq!(s.trace.after_switch, iso.steps);
+            assert!(s.trace.handed > 0.0 && s.trace.dropped < s.trace.handed);
+            let b = s.balance.unwrap();
+            let dropped = s.trace.dropped * b.source;
+            let err = (b.source - b.outflow - b.absorbed - dropped).abs() / b.source;
+            assert!(err < 1e-12, "{params:?}: imbalance {err:e}");
+            assert!(b.absorbed > 0.0);
+            match params.get("switch") {
+                Some(v) if v < 10.0 => assert_eq!((sw.m, sw.clamp), (10, residuum::Clamp::Low)),
+                Some(v) => assert_eq!((sw.m, sw.clamp), (v as usize, residuum::Clamp::None)),
+                None => {
+                    assert_eq!(sw.per_channel.len(), 1);
+                    assert_eq!(sw.m, sw.raw.ceil() as usize);
+                    // Eq 10 with ā = 1, σ̄s = 3.8 and this ordinate's Δx (its grid covers
+                    // the box's extent along d: 0.162, m′ = 16.8).
+                    let dx =
+                        super::super::PropagationGrid::over(&medium.grid, o[0].direction, 10).dx;
+                    let want = residuum::eq10(1.0, 0.1, 0.8, 3.8, dx);
+                    assert!((sw.raw - want).abs() < 1e-9 && sw.raw > 10.0, "{sw:?}");
+                }
+            }
+        }
+    }
+
+    /// Bad residuum parameters are typed errors naming them; the residuum variants are
+    /// CPU-only in their capabilities (the GPU refusal itself is in `tests/pop_residuum.rs`).
+    #[test]
+    fn residuum_parameters_are_checked() {
+        let with = |spec: &str, name: &str, v: f64| {
+            method::parse_with(spec, &Params::none().with(name, v))
+        };
+        for (spec, name, v) in [
+            ("pop", "switch", 20.0),
+            ("pop:heuristic", "iso", 20.0),
+            ("pop:residuum", "switch", -1.0),
+            ("pop:residuum", "switch", 2.5),
+            ("pop:residuum", "iso", f64::NAN),
+            ("pop:residuum-fld", "iso", 20.0),
+        ] {
+            match with(spec, name, v) {
+                Err(SolverError::BadParameter { name: got, .. }) => assert_eq!(got, name),
+                other => panic!("{spec} {name}={v}: {other:?}"),
+            }
+        }
+        assert!(matches!(
+            method::parse("pop:residuum-iso"),
+            Err(SolverError::UnknownName { .. })
+        ));
+        for spec in ["pop:residuum", "pop:residuum-fld"] {
+            let m = method::parse(spec).unwrap();
+            assert_eq!(m.name(), spec);
+            assert!(!m.capabilities().gpu && m.capabilities().f64);
+            assert!(m.step_settings().is_none());
+        }
+        assert!(method::parse("pop").unwrap().capabilities().gpu);
     }
 }

@@ -41,7 +41,8 @@
 //! Cells without light skip the fraction pass (a wavefront fills one slice per iteration).
 //!
 //! The isotropic residuum (Eqs 9–10) is in [`residuum`] (CPU, f64, behind
-//! `PopConfig::residuum`). Back to world space (Secs 4.4, 5.3) is [`upsample`]: the merge
+//! `PopConfig::residuum`; registered as the variants `pop:residuum` and, ours, `pop:residuum-fld`,
+//! see [`method`]). Back to world space (Secs 4.4, 5.3) is [`upsample`]: the merge
 //! into one medium-aligned grid at 2× the ordinate grids' resolution (D13), joint bilateral
 //! upsampling guided by σs (D19; trilinear as the control; T14 and the W10 energy
 //! measurement there), and POP's own image ([`upsample::view_image`]: the camera as Eq 8's
