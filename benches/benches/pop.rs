@@ -37,9 +37,12 @@
 //!   and channel, ÷ the triad probe of the same run over the same footprint.
 //!
 //!   **Measured** (`SCATTERBENCH_POP_SETTINGS=fig8 cargo bench -p benches --bench pop`, one
-//!   run, 2 vCPUs shared with two other agents' compiles, load average 4.7–6.1 during the
-//!   run, so the times are several times a quiet machine's and f32 vs f64 is within the
-//!   noise; `results/bench/pop_fig8.csv`), median of 7, ms:
+//!   run on a 2-vCPU AMD EPYC (AVX-512, 2 MiB L2 per core, 32 MiB L3) shared with two other
+//!   agents' compiles, load average 4.7–6.1 during the run, so the times are several times a
+//!   quiet machine's and f32 vs f64 is within the noise; the triad probe of the same run gave
+//!   84.1 GB/s (f32 footprint) and 50.1 GB/s (f64); `results/bench/pop_fig8.csv`), median of
+//!   7, ms (propagation and whole solve are separate medians, so under that load the f64
+//!   whole solve came out below its own propagation):
 //!
 //!   | row | precision | propagation (isotropic part) | whole solve | RGB cell-updates/s | GB/s ÷ triad | paper (GTX 770) |
 //!   |---|---|---|---|---|---|---|

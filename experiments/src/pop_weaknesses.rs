@@ -44,6 +44,7 @@ use reference::pathtracer::PathSettings;
 use reference::pathtracer::current::{CurrentTally, current};
 use reference::transport::slab::Slab;
 use serde::Serialize;
+use solvers::method::{DirectLight, uncollided_directional};
 use solvers::pop::{self, Lateral, Ordinate, PopConfig, PopMedium};
 use solvers::scene::{Light, Phase, Sampler, Scene};
 use solvers::{Grid, Medium};
@@ -180,22 +181,15 @@ fn inside(grid: &Grid, v: usize, x: [f64; 2], yz: [f64; 2]) -> bool {
     (x[0]..x[1]).contains(&c[0]) && (yz[0]..yz[1]).contains(&c[1]) && (yz[0]..yz[1]).contains(&c[2])
 }
 
-/// The exact uncollided fluence of a unit beam along +x at every voxel centre.
+/// The exact uncollided fluence of the unit beam along +x at every voxel centre (the
+/// pipeline's deep shadow map, as POP's method subtracts it).
 fn uncollided(m: &Medium<f64>) -> Vec<f64> {
-    let g = &m.grid;
-    let mut out = vec![0.0; g.len()];
-    for k in 0..g.n[2] {
-        for j in 0..g.n[1] {
-            let mut tau = 0.0;
-            for i in 0..g.n[0] {
-                let v = g.index(i, j, k);
-                let half = 0.5 * m.sigma_t[v] * g.dl;
-                out[v] = (-(tau + half)).exp();
-                tau += 2.0 * half;
-            }
-        }
-    }
-    out
+    let beam = DirectLight::Directional {
+        index: 0,
+        direction: [1.0, 0.0, 0.0],
+        irradiance: 1.0,
+    };
+    uncollided_directional(m, &[beam])
 }
 
 fn scene(medium: Medium<f64>, g: f64, seed: u64) -> Scene {

@@ -94,33 +94,7 @@ impl InfiniteMedium {
         settings: &PathSettings,
         shard: Shard,
     ) -> Result<BatchSums, ReferenceError> {
-        if edges.len() < 2 {
-            return Err(ReferenceError::BadParameter {
-                name: "edges",
-                value: edges.len() as f64,
-                reason: "need at least two shell edges",
-            });
-        }
-        if let Some((index, &value)) = edges
-            .iter()
-            .enumerate()
-            .find(|(_, r)| !(r.is_finite() && **r >= 0.0))
-        {
-            return Err(ReferenceError::BadListEntry {
-                name: "edges",
-                index,
-                value,
-                reason: "must be finite and ≥ 0",
-            });
-        }
-        if let Some(index) = (1..edges.len()).find(|&i| edges[i] <= edges[i - 1]) {
-            return Err(ReferenceError::BadListEntry {
-                name: "edges",
-                index,
-                value: edges[index],
-                reason: "must be greater than the edge before it (edges strictly increase)",
-            });
-        }
+        check_edges(edges)?;
         check_batches(settings.batches, settings.paths, "paths")?;
         let k = edges.len() - 1;
         let r2: Vec<f64> = edges.iter().map(|r| r * r).collect();
@@ -210,4 +184,37 @@ pub fn shells_from(edges: &[f64], sums: &BatchSums) -> Result<Vec<Shell>, Refere
             uncollided: est[2 * k + j],
         })
         .collect())
+}
+
+/// Shell edges: at least two, each finite and ≥ 0, strictly increasing (every shell tally of
+/// the path tracer: the unbounded medium here, the bounded sphere in [`super::sphere`]).
+pub(crate) fn check_edges(edges: &[f64]) -> Result<(), ReferenceError> {
+    if edges.len() < 2 {
+        return Err(ReferenceError::BadParameter {
+            name: "edges",
+            value: edges.len() as f64,
+            reason: "need at least two shell edges",
+        });
+    }
+    if let Some((index, &value)) = edges
+        .iter()
+        .enumerate()
+        .find(|(_, r)| !(r.is_finite() && **r >= 0.0))
+    {
+        return Err(ReferenceError::BadListEntry {
+            name: "edges",
+            index,
+            value,
+            reason: "must be finite and ≥ 0",
+        });
+    }
+    if let Some(index) = (1..edges.len()).find(|&i| edges[i] <= edges[i - 1]) {
+        return Err(ReferenceError::BadListEntry {
+            name: "edges",
+            index,
+            value: edges[index],
+            reason: "must be greater than the edge before it (edges strictly increase)",
+        });
+    }
+    Ok(())
 }

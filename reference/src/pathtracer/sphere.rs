@@ -30,6 +30,7 @@
 
 use super::estimators::{Estimate, check_batches, run_batches};
 use super::fluence::PathSettings;
+use super::infinite::check_edges;
 use super::math::{Vec3, at, dot};
 use super::phase::{sample_dir, uniform_sphere};
 use super::rng::Rng;
@@ -171,37 +172,6 @@ impl SphereMedium {
             },
         )
     }
-}
-
-fn check_edges(edges: &[f64]) -> Result<(), ReferenceError> {
-    if edges.len() < 2 {
-        return Err(ReferenceError::BadParameter {
-            name: "edges",
-            value: edges.len() as f64,
-            reason: "need at least two shell edges",
-        });
-    }
-    if let Some((index, &value)) = edges
-        .iter()
-        .enumerate()
-        .find(|(_, r)| !(r.is_finite() && **r >= 0.0))
-    {
-        return Err(ReferenceError::BadListEntry {
-            name: "edges",
-            index,
-            value,
-            reason: "must be finite and ≥ 0",
-        });
-    }
-    if let Some(index) = (1..edges.len()).find(|&i| edges[i] <= edges[i - 1]) {
-        return Err(ReferenceError::BadListEntry {
-            name: "edges",
-            index,
-            value: edges[index],
-            reason: "must be greater than the edge before it (edges strictly increase)",
-        });
-    }
-    Ok(())
 }
 
 /// Tallies the flight x(t) = p + t d, t ∈ [0, l] (b = p·d, h² = |p|² − b²): track length

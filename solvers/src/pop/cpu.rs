@@ -499,16 +499,7 @@ impl<T: Real> CpuPop<T> {
                 led.exit_side += slice[ch][3] * area;
             }
             led.in_flight = flight.iter().map(|s| s[ch]).sum::<f64>() * area;
-            let r = if led.injected > 0.0 {
-                led.in_flight / led.injected
-            } else {
-                0.0
-            };
-            worst = if r.is_finite() {
-                worst.max(r)
-            } else {
-                f64::NAN
-            };
+            worst = worse_residual(worst, led.in_flight, led.injected);
         }
         self.history.push(worst);
         self.steps += 1;
@@ -531,6 +522,22 @@ impl<T: Real> CpuPop<T> {
             }
             self.step();
         }
+    }
+}
+
+/// The running D9 residual over channels: the larger of `worst` and in flight/injected
+/// (0 when nothing was injected); NaN once any channel is not finite.
+#[inline]
+pub(crate) fn worse_residual(worst: f64, in_flight: f64, injected: f64) -> f64 {
+    let r = if injected > 0.0 {
+        in_flight / injected
+    } else {
+        0.0
+    };
+    if r.is_finite() {
+        worst.max(r)
+    } else {
+        f64::NAN
     }
 }
 

@@ -24,7 +24,7 @@
 //! CPU's step: up to K − 1 steps later (R^m never rises, T3). Those extra steps add to φ the
 //! little light still in flight (< ε_L of the injected power per step).
 
-use super::cpu::{CpuPop, K, Ledger, S};
+use super::cpu::{CpuPop, K, Ledger, S, worse_residual};
 use super::{Lateral, OrdinateRun, PopConfig, PopMedium, PopSolution};
 use crate::SolverError;
 use crate::gpu::kernel::{
@@ -463,16 +463,7 @@ impl Checkpointed for GpuPop<'_> {
             led.exit_front = base.exit_front + sum[2] * area;
             led.exit_side = base.exit_side + sum[3] * area;
             led.in_flight = sum[4] * area;
-            let r = if led.injected > 0.0 {
-                led.in_flight / led.injected
-            } else {
-                0.0
-            };
-            worst = if r.is_finite() {
-                worst.max(r)
-            } else {
-                f64::NAN
-            };
+            worst = worse_residual(worst, led.in_flight, led.injected);
         }
         self.history.push((self.steps, worst));
         observer(self.steps, worst);

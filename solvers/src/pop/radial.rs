@@ -157,6 +157,7 @@
 //! (D18's a = (1 + cos θ_c)/2); instant radiosity (out of scope).
 
 use super::PopMedium;
+use super::cpu::worse_residual;
 use super::grid::{self, MipLevel};
 use super::kernel::{decay, fractions};
 use crate::method::Stop;
@@ -991,16 +992,7 @@ impl<T: Real> RadialPop<T> {
                 f64::INFINITY
             };
             tr.predicted.push(tr.visits + rest);
-            let r = if led.injected > 0.0 {
-                led.in_flight / led.injected
-            } else {
-                0.0
-            };
-            worst = if r.is_finite() {
-                worst.max(r)
-            } else {
-                f64::NAN
-            };
+            worst = worse_residual(worst, led.in_flight, led.injected);
         }
         self.history.push(worst);
         self.steps += 1;

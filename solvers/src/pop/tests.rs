@@ -262,7 +262,9 @@ fn resampling_conserves_and_axis_grids_copy_the_medium() {
 
 // ---------------------------------------------------------------- T3, T4: balance, sanity
 
-fn random_medium(seed: u64, n: usize, g: f64) -> PopMedium {
+/// A random single-channel medium: vacuum in a third of the voxels, σt over 10⁴ contrast,
+/// albedo 0–1 (also the radial grid's balance tests).
+pub(crate) fn random_medium(seed: u64, n: usize, g: f64) -> PopMedium {
     let mut rng = SplitMix64::new(seed);
     let grid = Grid::cube(n, 1.0).unwrap();
     let mut ss = Vec::new();

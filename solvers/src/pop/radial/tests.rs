@@ -3,7 +3,6 @@
 #![allow(clippy::unwrap_used, clippy::needless_range_loop)]
 
 use super::*;
-use crate::noise::SplitMix64;
 
 const SIZES: [usize; 11] = [2, 3, 4, 5, 6, 7, 8, 9, 16, 17, 32];
 
@@ -266,29 +265,7 @@ fn fluence_on_a_world_grid_in_vacuum() {
     assert!(checked > 600, "{checked}");
 }
 
-fn random_medium(seed: u64, n: usize, g: f64) -> PopMedium {
-    let mut rng = SplitMix64::new(seed);
-    let grid = Grid::cube(n, 1.0).unwrap();
-    let mut ss = Vec::new();
-    let mut sa = Vec::new();
-    for _ in 0..grid.len() {
-        let vac = rng.next_f64() < 0.33;
-        let st = if vac {
-            0.0
-        } else {
-            0.1 * 1e4f64.powf(rng.next_f64())
-        };
-        let al = rng.next_f64();
-        ss.push(st * al);
-        sa.push(st * (1.0 - al));
-    }
-    PopMedium {
-        grid,
-        sigma_s: vec![ss],
-        sigma_a: vec![sa],
-        g: vec![g],
-    }
-}
+use crate::pop::tests::random_medium;
 
 fn balance<T: Real>(tol: f64) -> f64 {
     let mut worst = 0f64;
