@@ -58,8 +58,9 @@
 //! 0.334, `pop:residuum-fld` 0.181 (that run predates the vacuum change; the sphere's
 //! vacuum corners held power in flight).
 //!
-//! **Lights a method refuses.** A method that takes the lights itself refuses point and
-//! sphere lights; where the registry offers its baked form (`Method::with_baked_lights`:
+//! **Lights a method refuses.** A method that takes the lights itself refuses sphere lights,
+//! and point lights unless it has radial grids for them (`Capabilities::direct_points`: POP);
+//! where the registry offers its baked form (`Method::with_baked_lights`:
 //! `lpm` → `lpm:baked`, spec D13's first-collision injection, which agrees with `lpm` to
 //! 2.6·10⁻³ on the multiple-scattering image, see `solvers::lpm::method`), the atlas renders
 //! that form on such a scene and records it under its own name, with `in place of lpm` in
@@ -377,8 +378,8 @@ impl MethodEntry {
 }
 
 /// Why `entry` cannot render `scene` at `setting`, if its plan refuses it: a method that cannot
-/// render a dataset's effects (POP: no volume source; methods that take the lights themselves:
-/// no point lights) gets no point there, and `skipped.csv` keeps the plan's typed error.
+/// render a dataset's effects (a method that takes the lights itself without point-light
+/// support: LPM on `plume`) gets no point there, and `skipped.csv` keeps the plan's typed error.
 fn refusal(entry: &MethodEntry, scene: &Prepared, setting: &Setting) -> Option<String> {
     let Renderer::Pipeline(m) = &entry.renderer else {
         return None;

@@ -258,8 +258,12 @@ pub fn cpu_precision(name: &str, backend: &Backend<'_>) -> Result<Precision, Sol
 ///     anisotropy). The environment seen directly (`background`) stays the raymarch's;
 ///   - plus, with emission, the emission's fluence of orders ≥ 0, as for `Baked`.
 ///
-/// Point and sphere lights are refused with [`SolverError::LightKind`] naming the light
-/// ([`direct_lights`]).
+///   - for each **point** light, when the method takes them ([`Capabilities::direct_points`]:
+///     POP's radial grids): φ_s only, its uncollided fluence P·e^{−τ}/(4πr²) removed, as for
+///     a directional light (the pipeline's raymarch renders its single scattering).
+///
+/// Sphere lights, and point lights of a method without `direct_points`, are refused with
+/// [`SolverError::LightKind`] naming the light ([`direct_lights`]).
 ///
 /// The planner records per pass which effects it computes ([`crate::pipeline::Planned`]'s
 /// `computes`); `pipeline::tests::direct_lpm_counts_every_effect_once` checks the contract
@@ -295,11 +299,27 @@ pub enum DirectLight {
         /// Radiance.
         radiance: f64,
     },
+    /// An isotropic point light of total `power` at `position` (only for a method with
+    /// [`Capabilities::direct_points`]); as for a directional light, the method removes its
+    /// uncollided fluence P·e^{−τ}/(4πr²) from φ.
+    Point {
+        /// Index in [`Problem::lights`].
+        index: usize,
+        /// Position, in the medium's frame.
+        position: [f64; 3],
+        /// Power (W), 4π times the intensity.
+        power: f64,
+    },
 }
 
 /// The lights of `problem` as a Direct method of name `method` takes them: directional and
-/// environment lights; a point or sphere light is [`SolverError::LightKind`] naming it.
-pub fn direct_lights(method: &str, lights: &[Light]) -> Result<Vec<DirectLight>, SolverError> {
+/// environment lights, and point lights when `points` ([`Capabilities::direct_points`]);
+/// any other point light, and every sphere light, is [`SolverError::LightKind`] naming it.
+pub fn direct_lights(
+    method: &str,
+    lights: &[Light],
+    points: bool,
+) -> Result<Vec<DirectLight>, SolverError> {
     lights
         .iter()
         .enumerate()
@@ -313,6 +333,11 @@ pub fn direct_lights(method: &str, lights: &[Light]) -> Result<Vec<DirectLight>,
                 irradiance,
             }),
             Light::Environment { radiance } => Ok(DirectLight::Environment { index, radiance }),
+            Light::Point { position, power } if points => Ok(DirectLight::Point {
+                index,
+                position,
+                power,
+            }),
             Light::Point { .. } => Err(SolverError::LightKind {
                 method: method.to_string(),
                 index,
@@ -372,6 +397,10 @@ pub struct Capabilities {
     /// Defines an outflow whose balance with the source holds at albedo 1 (the conformance
     /// suite's energy test runs when true).
     pub conserves_energy: bool,
+    /// With [`LightInput::Direct`]: takes point lights itself ([`DirectLight::Point`]; POP's
+    /// radial grids). Without it a Direct method refuses them ([`direct_lights`]); a
+    /// [`LightInput::Baked`] method gets every point light baked and ignores this.
+    pub direct_points: bool,
 }
 
 impl Capabilities {

@@ -117,6 +117,7 @@ impl Method for FldMethod {
             anisotropic: false,
             lights: LightInput::Baked,
             conserves_energy: false,
+            direct_points: false,
         }
     }
 

@@ -95,6 +95,7 @@ impl Method for LbmMethod {
             anisotropic: self.anisotropy == AnisotropyScaling::Paper,
             lights: LightInput::Baked,
             conserves_energy: true,
+            direct_points: false,
         }
     }
 

@@ -167,7 +167,7 @@ impl LpmMethod {
         let mut all = BoundaryLight::none(dirs);
         let mut dir = BoundaryLight::none(dirs);
         let mut any_dir = false;
-        for l in crate::method::direct_lights(&self.name(), problem.lights)? {
+        for l in crate::method::direct_lights(&self.name(), problem.lights, false)? {
             let (b, is_dir) = match l {
                 DirectLight::Directional {
                     direction,
@@ -179,6 +179,14 @@ impl LpmMethod {
                 ),
                 DirectLight::Environment { radiance, .. } => {
                     (BoundaryLight::uniform(dirs, radiance), false)
+                }
+                // Not returned without `direct_points`; refused the same way if it were.
+                DirectLight::Point { index, .. } => {
+                    return Err(SolverError::LightKind {
+                        method: self.name(),
+                        index,
+                        kind: "point",
+                    });
                 }
             };
             for (k, r) in b.radiance.iter().enumerate() {
@@ -213,6 +221,7 @@ impl Method for LpmMethod {
             anisotropic: true,
             lights: self.lights,
             conserves_energy: true,
+            direct_points: false,
         }
     }
 

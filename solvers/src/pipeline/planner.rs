@@ -154,11 +154,12 @@ pub fn plan(
     // Lights enter the multiple-scattering solve as baked q_ri unless the method takes them.
     let baked_for_ms = ms && caps.lights == LightInput::Baked;
     // A Direct method takes the lights itself (the contract of φ: `LightInput`): it refuses
-    // point and sphere lights, and the single scattering of an environment light is its.
+    // sphere lights, and point lights unless it has `direct_points` (POP), and the single
+    // scattering of an environment light is its.
     let direct = ms && caps.lights == LightInput::Direct;
     let mut by_solve = Vec::new();
     if direct {
-        crate::method::direct_lights(&method.name(), lights)?;
+        crate::method::direct_lights(&method.name(), lights, caps.direct_points)?;
         for (i, l) in lights.iter().enumerate() {
             if matches!(l, Light::Environment { .. }) {
                 if ss.contains(&i) {

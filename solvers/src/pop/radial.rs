@@ -152,8 +152,9 @@
 //! < 1 s for g = 0.9, 0.96 and for every M = 32 run; the path tracer 0.2–0.8 s per (σs, g)
 //! at 4·10⁵ paths. The issue's ≤ 60 s is met in CPU time but not in wall time on the loaded
 //! machine. `--quick` (16² × 16, 2·10⁴ paths; measured with 10⁴): 2.7 s wall.
-//! Not done here: a GPU version; point lights in [`super::method::PopMethod`] (this module
-//! only offers [`solve_point`] and [`RadialSolution::fluence_on`]); sphere lights
+//! Behind the method interface: [`super::method::PopMethod`] runs [`solve_point_split`] for
+//! every point light of a problem and adds its collided φ. Not done here: a GPU version;
+//! sphere lights
 //! (D18's a = (1 + cos θ_c)/2); instant radiosity (out of scope).
 
 use super::PopMedium;
@@ -1228,14 +1229,13 @@ impl<T: Real> RadialSolution<T> {
     }
 }
 
-/// Propagates a point light at `position` with intensity `intensity[ch]` per channel (power
-/// 4π·I) through `medium` on the radial grid of `config`.
-pub fn solve_point<T: Real>(
+/// Validates a point light's inputs, builds its radial grid and injects it.
+fn prepare_point<T: Real>(
     medium: &PopMedium,
     position: [f64; 3],
     intensity: &[f64],
     config: &RadialConfig,
-) -> Result<RadialSolution<T>, SolverError> {
+) -> Result<RadialPop<T>, SolverError> {
     medium.validate()?;
     config.validate::<T>(medium.channels())?;
     if let Some((c, &v)) = position.iter().enumerate().find(|(_, v)| !v.is_finite()) {
@@ -1278,8 +1278,44 @@ pub fn solve_point<T: Real>(
     let grid = RadialGrid::new(position, config.n_a, config.n_r, r_max);
     let mut pop = RadialPop::<T>::new(medium, grid);
     pop.inject(intensity);
+    Ok(pop)
+}
+
+/// Propagates a point light at `position` with intensity `intensity[ch]` per channel (power
+/// 4π·I) through `medium` on the radial grid of `config`.
+pub fn solve_point<T: Real>(
+    medium: &PopMedium,
+    position: [f64; 3],
+    intensity: &[f64],
+    config: &RadialConfig,
+) -> Result<RadialSolution<T>, SolverError> {
+    let mut pop = prepare_point::<T>(medium, position, intensity, config)?;
     let stop = pop.run_with_tail(config.tolerance, config.max_iterations, config.tail);
     Ok(pop.solution(stop))
+}
+
+/// [`solve_point`] and, on the same radial grid, the light's **uncollided** part: the same
+/// cells with σs = 0 and σa = σt (= σs + σa), so that every packet keeps a = 1, moves one shell out per step and is attenuated by the exact cell-average
+/// transmittance of σt (the pure-absorber property pinned by T15): the shell average of
+/// P·e^{−τ}/(4πr²) per texel. Both are gathered by the same rule, so their difference is
+/// POP's collided fluence φ_s with no interpolation residue: exactly 0 in vacuum
+/// (`PopMethod`'s point lights, `radial::tests::point_light_collided_part`). Returns
+/// (total, uncollided); the uncollided run takes N_r + 1 steps.
+pub fn solve_point_split<T: Real>(
+    medium: &PopMedium,
+    position: [f64; 3],
+    intensity: &[f64],
+    config: &RadialConfig,
+) -> Result<(RadialSolution<T>, RadialSolution<T>), SolverError> {
+    let mut pop = prepare_point::<T>(medium, position, intensity, config)?;
+    let sigma_t = pop.sigma.iter().map(|&(s, a)| (0.0, s + a)).collect();
+    let mut bare = RadialPop::<T>::with_samples(pop.grid.clone(), sigma_t, &pop.g);
+    bare.inject(intensity);
+    let stop = pop.run_with_tail(config.tolerance, config.max_iterations, config.tail);
+    // With σs = 0 every packet has a = 1 (decay(g, 0) = 1) and the front fraction 1: all
+    // power has left after N_r steps, R = 0 stops the run.
+    let bare_stop = bare.run(0.0, pop.grid.n_r + 1);
+    Ok((pop.solution(stop), bare.solution(bare_stop)))
 }
 
 #[cfg(test)]

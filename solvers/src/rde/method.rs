@@ -130,6 +130,7 @@ impl Method for RdeMethod {
             anisotropic: false,
             lights: LightInput::Baked,
             conserves_energy: false,
+            direct_points: false,
         }
     }
 
