@@ -188,8 +188,11 @@
 //!   emissive cloud alone) these are the only ordinates; with a constant environment light
 //!   the first environment's grids carry the emission too ([`env::share_emission`]: the twins
 //!   agree to rounding), so it costs no extra grid; with only directional lights the
-//!   emission needs its own N grids, i.e. N ordinate propagations on top of one per sun (at
-//!   the default N = 64, 64× the work of a single sun).
+//!   emission needs its own N grids, i.e. N ordinate propagations on top of one per sun.
+//!   Measured once each (CPU f32, 16³ unit cube, σt = 4, albedo 0.9, g = 0.4, rel = 10⁻⁴,
+//!   N = 64; AMD EPYC, 2 cores shared, load average 1.8): solve 0.031 s for a sun alone,
+//!   1.67 s for the emission alone, 1.70 s for both, 1.64 s for a constant environment and
+//!   1.64 s for the environment with the emission (sharing costs nothing measurable).
 //! * **E2, injection.** At step 0 every cell of grid n receives the power j·Δx_n³·w_n, i.e.
 //!   L = j w_n Δx_n with anisotropy a_n, through the same path as any packet
 //!   ([`CpuPop::emit`]): counted as injected and in flight, merged by Eq 6 with what the cell
