@@ -116,6 +116,7 @@ fn medium(s: &Setting) -> PopMedium {
         sigma_s,
         sigma_a,
         g: vec![0.9; 3],
+        emission: Vec::new(),
     };
     m.validate()
         .unwrap_or_else(|e| fail(&format!("medium: {e}")));
@@ -342,6 +343,7 @@ fn fig8_medium(f: &Fig8) -> PopMedium {
         sigma_s,
         sigma_a,
         g: vec![0.95; 3],
+        emission: Vec::new(),
     };
     m.validate()
         .unwrap_or_else(|e| fail(&format!("medium: {e}")));

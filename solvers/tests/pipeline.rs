@@ -488,7 +488,8 @@ fn vdb_scene_files_report_typed_errors_naming_the_field() {
 fn every_registered_method_replaces_only_the_multiple_scattering_pass() {
     let with_emission = cloud(0.9, true, true);
     let fld_with = pipeline::render(&with_emission, &quick_config(), &CPU).unwrap();
-    // A method without a volume source (POP) is compared on the scene without emission.
+    // A method without a volume source (none at present; POP takes emission since its
+    // emission ordinates) would be compared on the scene without emission.
     let lights_only = cloud(0.9, true, false);
     let fld_without = pipeline::render(&lights_only, &quick_config(), &CPU).unwrap();
     for family in solvers::method::METHODS {

@@ -17,6 +17,13 @@ pub(super) const K: usize = 7;
 /// Slots per cell and channel of the accumulators: φ = Σ L^m, J = Σ L^m a^m, L_acc (Eq 8).
 pub const ACC: usize = 3;
 
+/// The weight of the step-0 visit of an emission packet in its own cell's accumulators
+/// ([`CpuPop::emit`]): ½, so that φ at a cell centre counts the half of the cell's own
+/// emission that lies upstream of the centre (as D1's half cell does for a beam). Measured
+/// against the exact uncollided fluence in `pop/tests.rs` (`emission_…`); a full visit
+/// over-counts by j·Σ_n w_n Δx_n/2.
+pub const EMISSION_VISIT: f64 = 0.5;
+
 /// Where the power of one channel has gone, in units of power (L·Δx²), since injection.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Ledger {
@@ -290,10 +297,36 @@ impl<T: Real> CpuPop<T> {
         }
     }
 
+    /// Injects the volume emission (ours, not the paper's; module docs, "Volume emission"):
+    /// every cell and channel receives at step 0 the power j·Δx³·`share` (`j` per
+    /// `[cell][channel]`, from [`super::grid::resample_emission`]), i.e. L = j·`share`·Δx,
+    /// with anisotropy `a` along d, counted as injected and in flight like any packet
+    /// ([`CpuPop::add_cell`]). Its own cell sees it with visit weight ½ ([`EMISSION_VISIT`]):
+    /// the packet stands for light emitted uniformly through the cell, and φ is a point
+    /// value at the centre, where half of that light has arrived. Adds to whatever is in
+    /// the grid; the steps then run the Neumann series Σ_m P^m S of the step-0 source.
+    pub fn emit(&mut self, j: &[f64], share: f64, a: f64) {
+        let dx = self.grid.dx;
+        for cell in 0..self.grid.len() {
+            for ch in 0..self.nc {
+                let l = j[cell * self.nc + ch] * share * dx;
+                if l > 0.0 {
+                    self.ledger[ch].injected += l * dx * dx;
+                    self.add_packet(cell, ch, l, a, EMISSION_VISIT);
+                }
+            }
+        }
+    }
+
     /// Adds a packet of radiance `l` and anisotropy `a` to cell `cell`, channel `ch` (its
     /// anisotropy becomes the L-weighted mean, Eq 6), counted as injected and accumulated
     /// as a visit (φ += l).
     pub fn add_cell(&mut self, cell: usize, ch: usize, l: f64, a: f64) {
+        self.add_packet(cell, ch, l, a, 1.0);
+    }
+
+    /// [`CpuPop::add_cell`] with the accumulators (φ, J, L_acc) taking `visit`·l.
+    fn add_packet(&mut self, cell: usize, ch: usize, l: f64, a: f64, visit: f64) {
         let s = (cell * self.nc + ch) * S;
         let (l0, a0) = (self.state[s].f(), self.state[s + 1].f());
         let lt = l0 + l;
@@ -306,7 +339,7 @@ impl<T: Real> CpuPop<T> {
         let area = self.grid.dx * self.grid.dx;
         self.ledger[ch].in_flight += l * area;
         let acc = (cell * self.nc + ch) * ACC;
-        let lv = T::c(l);
+        let lv = T::c(l * visit);
         let av = T::c(a);
         self.acc[acc] = self.acc[acc] + lv;
         self.acc[acc + 1] = self.acc[acc + 1] + lv * av;

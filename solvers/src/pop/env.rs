@@ -151,7 +151,51 @@ pub fn environment_ordinates(
             direction,
             irradiance: energy[i],
             anisotropy,
+            emission: 0.0,
         });
     }
     Ok(out)
+}
+
+/// The ordinates that carry an isotropic volume emission (ours, not the paper's): the
+/// ordinates of a constant unit environment (the same `n`, `prefilter` and `resolution` as
+/// [`environment_ordinates`]), with no irradiance and the emission share w_n = E_n/Σ E =
+/// Ω_n/4π of each, so Σ w_n = 1 and, with the D11 prefilter, Σ w_n a_n d_n = 0 (both the
+/// energy and the first moment of isotropic emission; `pop/tests.rs`, `emission_…`).
+/// Light emitted into the cap of ordinate n travels within that cap, whose mean cosine about
+/// d_n is the a_n that D11 gives a constant environment's ordinate.
+pub fn emission_ordinates(
+    n: usize,
+    prefilter: Prefilter,
+    resolution: usize,
+) -> Result<Vec<Ordinate>, SolverError> {
+    let mut out = environment_ordinates(|_| 1.0, n, prefilter, resolution)?;
+    let total: f64 = out.iter().map(|o| o.irradiance).sum();
+    for o in &mut out {
+        o.emission = (o.irradiance / total).min(1.0);
+        o.irradiance = 0.0;
+    }
+    Ok(out)
+}
+
+/// Lets the ordinates `env` of a constant environment (from [`environment_ordinates`] with
+/// the same `n`, prefilter and resolution as `emission`, the output of
+/// [`emission_ordinates`]) carry the emission too, so both share one set of grids: each
+/// takes the share of its twin. The twins have the same Voronoi cells; their directions and
+/// anisotropies agree to rounding (a constant radiance scales the moments and the energy
+/// alike). Returns false, changing nothing, when the sets differ in size or a pair differs
+/// by more than 10⁻⁹ in direction or anisotropy (an environment of radiance 0 keeps the
+/// Fibonacci directions): then the emission needs its own ordinates.
+pub fn share_emission(env: &mut [Ordinate], emission: &[Ordinate]) -> bool {
+    let twins = env.len() == emission.len()
+        && env.iter().zip(emission).all(|(a, b)| {
+            (0..3).all(|c| (a.direction[c] - b.direction[c]).abs() <= 1e-9)
+                && (a.anisotropy - b.anisotropy).abs() <= 1e-9
+        });
+    if twins {
+        for (a, b) in env.iter_mut().zip(emission) {
+            a.emission = b.emission;
+        }
+    }
+    twins
 }

@@ -178,32 +178,129 @@ pub fn mip_level(medium: &Grid, dx: f64) -> u32 {
 /// so ∫σs dV and ∫σa dV are conserved exactly). Returns the coarse grid's dims, edge and
 /// origin and the fields `[channel] → (σs, σa)`.
 pub fn box_filter(medium: &PopMedium, level: u32) -> MipLevel {
-    let k = 1usize << level;
     let g = &medium.grid;
-    let dims = g.n.map(|n| n.div_ceil(k));
-    let len = dims[0] * dims[1] * dims[2];
+    let filter = |set: &[Vec<f64>]| -> Vec<Vec<f64>> {
+        set.iter().map(|f| restrict(g, f, level).1).collect()
+    };
+    MipLevel {
+        dims: restrict_dims(g, level),
+        dl: g.dl * (1usize << level) as f64,
+        origin: g.origin,
+        box_size: g.size(),
+        sigma_s: filter(&medium.sigma_s),
+        sigma_a: filter(&medium.sigma_a),
+    }
+}
+
+/// The voxels per axis of the level-`level` box filter of `g`.
+fn restrict_dims(g: &Grid, level: u32) -> [usize; 3] {
+    let k = 1usize << level;
+    g.n.map(|n| n.div_ceil(k))
+}
+
+/// One field on `g` box-filtered by 2^`level` (Σ children / k³, missing children vacuum:
+/// ∫f dV is conserved exactly); returns the coarse dims and the field.
+fn restrict(g: &Grid, f: &[f64], level: u32) -> ([usize; 3], Vec<f64>) {
+    let k = 1usize << level;
+    let dims = restrict_dims(g, level);
     let inv = 1.0 / (k * k * k) as f64;
-    let mut sigma_s = vec![vec![0.0; len]; medium.channels()];
-    let mut sigma_a = vec![vec![0.0; len]; medium.channels()];
+    let mut out = vec![0.0; dims[0] * dims[1] * dims[2]];
     for z in 0..g.n[2] {
         for y in 0..g.n[1] {
             for x in 0..g.n[0] {
-                let f = g.index(x, y, z);
                 let c = x / k + dims[0] * (y / k + dims[1] * (z / k));
-                for ch in 0..medium.channels() {
-                    sigma_s[ch][c] += medium.sigma_s[ch][f] * inv;
-                    sigma_a[ch][c] += medium.sigma_a[ch][f] * inv;
-                }
+                out[c] += f[g.index(x, y, z)] * inv;
             }
         }
     }
-    MipLevel {
-        dims,
-        dl: g.dl * k as f64,
-        origin: g.origin,
-        box_size: g.size(),
-        sigma_s,
-        sigma_a,
+    (dims, out)
+}
+
+/// The medium's volume emission resampled onto the ordinate grid `grid`, `[cell][channel]`
+/// (ours; the same path as σ in D4, then made conservative): the emission box-filtered to
+/// the MIP level of [`mip_level`], sampled clamped-trilinear at the rotated cell centres (0
+/// at centres outside the medium's box, like σ), then scaled per channel so that
+/// Σ j_cell Δx³ = ∫ j dV of the medium exactly. Should no cell centre see the emission (a
+/// source smaller than the sampling can reach), each MIP voxel's power goes whole into the
+/// cell that holds its centre instead, which conserves it too. Empty without emission.
+pub fn resample_emission(medium: &PopMedium, grid: &PropagationGrid) -> Vec<f64> {
+    if medium.emission.is_empty() {
+        return Vec::new();
+    }
+    let nc = medium.channels();
+    let g = &medium.grid;
+    let level = mip_level(g, grid.dx);
+    let dl = g.dl * (1usize << level) as f64;
+    let size = g.size();
+    let n = grid.n;
+    let cell_volume = grid.dx.powi(3);
+    let mut out = vec![0.0; grid.len() * nc];
+    for (ch, field) in medium.emission.iter().enumerate() {
+        let total: f64 = field.iter().sum::<f64>() * g.dl.powi(3);
+        if total == 0.0 {
+            continue;
+        }
+        let (dims, mip) = restrict(g, field, level);
+        let mut sampled = 0.0;
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let p = grid.center(i, j, k);
+                    let mut u = [0.0; 3];
+                    let inside = (0..3).all(|c| {
+                        let r = p[c] - g.origin[c];
+                        u[c] = r / dl;
+                        (0.0..=size[c]).contains(&r)
+                    });
+                    if inside {
+                        let v = trilinear(dims, u, |x| mip[x]);
+                        out[(i + n * (j + n * k)) * nc + ch] = v;
+                        sampled += v;
+                    }
+                }
+            }
+        }
+        sampled *= cell_volume;
+        if sampled > 0.0 {
+            let scale = total / sampled;
+            for cell in 0..grid.len() {
+                out[cell * nc + ch] *= scale;
+            }
+        } else {
+            deposit_nearest(&mut out, nc, ch, grid, dims, dl, g.origin, &mip);
+        }
+    }
+    out
+}
+
+/// The fallback of [`resample_emission`]: every MIP voxel's power j·dl³ into the cell of
+/// `grid` that holds the voxel's centre (clamped to the grid), as j per cell volume.
+#[allow(clippy::too_many_arguments)]
+fn deposit_nearest(
+    out: &mut [f64],
+    nc: usize,
+    ch: usize,
+    grid: &PropagationGrid,
+    dims: [usize; 3],
+    dl: f64,
+    origin: [f64; 3],
+    mip: &[f64],
+) {
+    let n = grid.n;
+    let ratio = (dl / grid.dx).powi(3);
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            for x in 0..dims[0] {
+                let v = mip[x + dims[0] * (y + dims[1] * z)];
+                if v == 0.0 {
+                    continue;
+                }
+                let p: [f64; 3] =
+                    std::array::from_fn(|c| origin[c] + ([x, y, z][c] as f64 + 0.5) * dl);
+                let u = grid.local(p).map(|w| (w.max(0.0) as usize).min(n - 1));
+                out[(u[0] + n * (u[1] + n * u[2])) * nc + ch] += v * ratio;
+            }
+        }
     }
 }
 

@@ -26,6 +26,13 @@
 //! light's radial grid always propagates to its own stop (the residuum's merge works on the
 //! ordinate grids' cubic cells, which the radial shells are not).
 //!
+//! **Volume emission** (ours, not the paper's; `mod.rs`, "Volume emission", E1–E4): the
+//! medium's emission j is injected at step 0 into every cell of the grids of `ordinates`
+//! emission ordinates (D10–D11's set for a constant environment, shares Ω_n/4π), which are
+//! the first constant environment light's own grids when there is one; with only
+//! directional lights, or none, they are N extra grids (N propagations: the cost of an
+//! environment light). Its φ, uncollided included, is kept whole, as the contract asks.
+//!
 //! **Tolerance.** One step is one propagation iteration of every ordinate (they run
 //! independently; `steps` is the largest count). [`Tolerance::rel`] is D9's R^m/P_inj, the
 //! power in flight over the injected power; [`Solution::last_change`] is its largest final
@@ -79,13 +86,14 @@
 //!
 //! **Measured in the pipeline** (`pipeline.rs`, `every_registered_method_…`: the 16³ vacuum
 //! cloud, albedo 0.9, g = 0.4, one directional light, downsample 2, f64): POP's mean
-//! multiple-scattering image is 4.04 × FLD-LP's (LPM 1.60, LBM 1.31): the over-bright
+//! multiple-scattering image is 4.04 × FLD-LP's without the cloud's emission, 3.79 × with it
+//! (the test's scene since POP takes emission; LPM 1.60, LBM 1.31 with it): the over-bright
 //! isotropised random walk of `mod.rs` (volume-mean φ 3.5 vs the path tracer's 0.89 on the
 //! Fig 12 cube at g = 0.7). The comparison with the path tracer (issue 17 item 6, measure)
 //! is not run yet.
 //!
-//! **Input errors:** g < 0 (`phase.g`, POP Sec 4), zero ordinates, N < 2, a medium with
-//! emission (POP takes no volume source), grids beyond the memory budget
+//! **Input errors:** g < 0 (`phase.g`, POP Sec 4), zero ordinates (no light and no
+//! emission), N < 2, grids beyond the memory budget
 //! ([`SolverError::TooLarge`], from [`PopConfig::validate`]).
 
 use super::radial::{self, RadialConfig};
@@ -259,17 +267,16 @@ impl PopMethod {
         let setup = std::time::Instant::now();
         let medium = problem.medium;
         medium.validate()?;
-        if let Some(index) = medium.emission.iter().position(|&j| j != 0.0) {
-            return Err(SolverError::FieldValue {
-                field: "emission",
-                index,
-                value: medium.emission[index],
-                range: "{0} (POP takes no volume source, only lights)",
-            });
-        }
         let lights = crate::method::direct_lights(&self.name(), problem.lights, true)?;
         let mut ordinates = Vec::new();
         let mut points = Vec::new();
+        // Volume emission (ours): the ordinates of a constant environment carry it, shared
+        // with the first environment light if there is one (module docs).
+        let mut emission = if medium.emission.iter().any(|&j| j != 0.0) {
+            super::env::emission_ordinates(self.ordinates, self.prefilter, ENV_ROWS)?
+        } else {
+            Vec::new()
+        };
         for l in &lights {
             match *l {
                 DirectLight::Directional {
@@ -278,18 +285,23 @@ impl PopMethod {
                     ..
                 } => ordinates.push(super::Ordinate::directional(direction, irradiance)?),
                 DirectLight::Environment { radiance, .. } => {
-                    ordinates.extend(super::environment_ordinates(
+                    let mut env = super::environment_ordinates(
                         |_| radiance,
                         self.ordinates,
                         self.prefilter,
                         ENV_ROWS,
-                    )?);
+                    )?;
+                    if !emission.is_empty() && super::env::share_emission(&mut env, &emission) {
+                        emission.clear();
+                    }
+                    ordinates.extend(env);
                 }
                 DirectLight::Point {
                     position, power, ..
                 } => points.push((position, power)),
             }
         }
+        ordinates.append(&mut emission);
         let pm = PopMedium::new(std::slice::from_ref(medium), &[problem.phase.mean_cosine()])?;
         let cells = self.cells_on(&medium.grid);
         let mut config = if tolerance.rel > 0.0 {
@@ -513,7 +525,7 @@ impl Method for PopMethod {
         Capabilities {
             gpu: self.residuum == ResiduumKind::Off,
             f64: true,
-            volume_source: false,
+            volume_source: true,
             anisotropic: true,
             lights: LightInput::Direct,
             conserves_energy: true,

@@ -220,6 +220,7 @@ fn resampling_conserves_and_axis_grids_copy_the_medium() {
         sigma_s: vec![ss.clone()],
         sigma_a: vec![sa.clone()],
         g: vec![0.5],
+        emission: Vec::new(),
     };
     m.validate().unwrap();
     for level in 0..3 {
@@ -286,6 +287,7 @@ pub(crate) fn random_medium(seed: u64, n: usize, g: f64) -> PopMedium {
         sigma_s: vec![ss],
         sigma_a: vec![sa],
         g: vec![g],
+        emission: Vec::new(),
     }
 }
 
@@ -345,6 +347,7 @@ fn t4<T: Real>() {
                 sigma_s: vec![ss],
                 sigma_a: vec![sa],
                 g: vec![g],
+                emission: Vec::new(),
             };
             let d = grid::normalise("d", [1.0, 0.3, -0.2]).unwrap();
             let mut cfg = PopConfig::new::<T>(n);
@@ -965,6 +968,7 @@ fn t22_convergence_in_ordinates() {
         sigma_s: vec![ss],
         sigma_a: vec![sa],
         g: vec![0.9],
+        emission: Vec::new(),
     };
     let cfg = PopConfig::fixed::<f32>(n, 3 * n);
     let phi = |count| {
@@ -1018,6 +1022,7 @@ fn rotation_errors() -> Vec<f64> {
         sigma_s: vec![ss],
         sigma_a: vec![sa],
         g: vec![0.9],
+        emission: Vec::new(),
     };
     let cfg = PopConfig {
         tolerance: 1e-6,
@@ -1031,6 +1036,7 @@ fn rotation_errors() -> Vec<f64> {
             direction: axes[2],
             irradiance: 1.0,
             anisotropy: 1.0,
+            emission: 0.0,
         };
         p.inject(&o, Init::EntrySlice);
         p.run(cfg.tolerance, cfg.max_iterations);

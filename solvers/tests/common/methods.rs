@@ -31,11 +31,21 @@ fn problem(medium: &Medium<f64>) -> Problem<'_> {
     }
 }
 
-/// Whether the method takes no volume source (POP): the suite then lights each medium by a
+/// Whether the method takes no volume source: the suite then lights each medium by a
 /// directional light along −z whose irradiance is the medium's total emission, on the medium
 /// without emission (so degree-1 homogeneity scales the light).
 fn lit_by_light(m: &dyn Method) -> bool {
     !m.capabilities().volume_source
+}
+
+/// Whether the method spreads the volume emission over a direction set that the cube's
+/// symmetries do not map onto itself: POP's emission ordinates are a spherical Fibonacci
+/// set (`pop::env::emission_ordinates`), so its φ of a symmetric source is symmetric only
+/// up to its ray effects (`pop/emission_tests.rs` measures them against the exact answer).
+/// [`mirror_symmetric`], which looks for indexing errors at rounding level, lights such a
+/// method as [`lit_by_light`] does.
+fn asymmetric_directions(m: &dyn Method) -> bool {
+    m.name().split(':').next() == Some("pop")
 }
 
 fn solve(
@@ -44,7 +54,18 @@ fn solve(
     medium: &Medium<f64>,
     t: &Tolerance,
 ) -> solvers::method::Fluence {
-    let result = if lit_by_light(m) {
+    solve_lit(m, b, medium, t, lit_by_light(m))
+}
+
+/// [`solve`], lit by the directional light instead of the emission when `lit`.
+fn solve_lit(
+    m: &dyn Method,
+    b: &Backend<'_>,
+    medium: &Medium<f64>,
+    t: &Tolerance,
+    lit: bool,
+) -> solvers::method::Fluence {
+    let result = if lit {
         let mut dark = medium.clone();
         let power: f64 = dark.emission.iter().sum();
         dark.emission.iter_mut().for_each(|j| *j = 0.0);
@@ -146,7 +167,8 @@ pub fn mirror_symmetric(m: &dyn Method, b: &Backend<'_>) {
     let medium = symmetric_medium();
     let g = medium.grid;
     let n = g.n[0];
-    let sol = solve(m, b, &medium, &Tolerance::fixed_steps(60));
+    let lit = lit_by_light(m) || asymmetric_directions(m);
+    let sol = solve_lit(m, b, &medium, &Tolerance::fixed_steps(60), lit);
     let max = sol.phi.iter().cloned().fold(0.0, f64::max);
     assert!(max > 0.0, "{} on {b}: φ = 0", m.name());
     let tol = rounding(b) * max;
@@ -158,7 +180,6 @@ pub fn mirror_symmetric(m: &dyn Method, b: &Backend<'_>) {
             for i in 0..n {
                 let v = at(i, j, k);
                 // A method lit along z keeps only the symmetries that fix z.
-                let lit = lit_by_light(m);
                 for (name, w) in [
                     ("mirror x", at(r(i), j, k)),
                     ("mirror y", at(i, r(j), k)),
