@@ -673,7 +673,8 @@ fn direct_lpm_counts_every_effect_once() {
 /// The plan's image passes compute disjoint effect sets whose union is every rendered effect
 /// but attenuation and anisotropy, for a baked method and for the two that take the lights
 /// themselves, on a scene with a directional and an environment light (the environment's
-/// single scattering is the Direct method's φ).
+/// single scattering is the Direct method's φ); with a point light added, LPM refuses it and
+/// POP leaves its single scattering to the raymarch.
 #[test]
 fn every_effect_is_computed_by_exactly_one_image_pass() {
     let scene = lit_cube(
@@ -743,21 +744,35 @@ fn every_effect_is_computed_by_exactly_one_image_pass() {
             pipeline::plan_channels(std::slice::from_ref(&scene), &EffectSelection::all(), &cfg),
             Err(pipeline::PipelineError::MethodCannot { .. })
         ));
-        // A point light is refused by name.
+        // A point light: LPM refuses it by name; POP takes it (its radial grids) and its
+        // single scattering stays the raymarch's, like a directional light's.
         let mut point = scene.clone();
         point.lights.push(Light::Point {
             position: [0.5, 0.5, 2.0],
             power: 1.0,
         });
-        let e = pipeline::plan_channels(
+        let planned = pipeline::plan_channels(
             std::slice::from_ref(&point),
             &EffectSelection::all(),
             &PipelineConfig {
                 method: spec.parse().unwrap(),
                 ..PipelineConfig::default()
             },
-        )
-        .unwrap_err();
-        assert!(e.to_string().contains("light 2 is a point light"), "{e}");
+        );
+        if spec == "lpm" {
+            let e = planned.unwrap_err();
+            assert!(e.to_string().contains("light 2 is a point light"), "{e}");
+        } else {
+            let plan = planned.unwrap();
+            let explained = plan.explain();
+            assert!(
+                explained.contains("computes: single_scattering[0], single_scattering[2]"),
+                "{explained}"
+            );
+            assert!(
+                explained.contains("computes: multiple_scattering, single_scattering[1]"),
+                "{explained}"
+            );
+        }
     }
 }
