@@ -438,8 +438,9 @@ impl Experiment for PopRadial {
     const NAME: &'static str = "pop_radial";
     const TITLE: &'static str =
         "POP Fig 10: the radial grid around a point light in a sphere vs the path tracer";
-    const BACKEND: BackendSupport =
-        BackendSupport::CpuOnly("POP's radial grid runs on the CPU only (no GPU version yet)");
+    const BACKEND: BackendSupport = BackendSupport::CpuOnly(
+        "Fig 10's numbers come from the f64 CPU radial grid (its f32 GPU twin is pinned to CPU-f32 by solvers/tests/pop_gpu.rs)",
+    );
     type Args = Args;
     type Summary = Summary;
 

@@ -170,7 +170,7 @@ mod common;
 
 /// The residuum variants have no GPU kernel: on the GPU backend `pop:residuum` and
 /// `pop:residuum-fld` are a typed [`solvers::SolverError::Unsupported`] naming the variant,
-/// and so is `pop` with a point light (its radial grid is CPU-only), never a silent CPU run (lavapipe in CI; skipped with one line without an adapter).
+/// never a silent CPU run (lavapipe in CI; skipped with one line without an adapter).
 #[test]
 fn residuum_variants_refuse_the_gpu_with_a_typed_error() {
     use solvers::method::{self, Problem, Tolerance};
@@ -199,15 +199,5 @@ fn residuum_variants_refuse_the_gpu_with_a_typed_error() {
             pop.solve(b, &p, &Tolerance::rel(1e-3), &mut |_, _| {})
                 .is_ok()
         );
-        // A point light's radial grid has no GPU kernel: the same typed refusal.
-        let lamp = [Light::Point {
-            position: [0.5, 0.5, 0.5],
-            power: 1.0,
-        }];
-        let q = Problem { lights: &lamp, ..p };
-        match pop.solve(b, &q, &Tolerance::rel(1e-3), &mut |_, _| {}) {
-            Err(solvers::SolverError::Unsupported(msg)) => assert!(msg.contains("radial"), "{msg}"),
-            other => panic!("pop with a point light on the GPU: {other:?}"),
-        }
     });
 }

@@ -49,10 +49,12 @@
 //! observer, σs·L_acc raymarched through the pipeline's view-dependent source hook
 //! `pipeline::raymarch::Term::ViewSource`). Point lights propagate on radial octahedral grids (Sec 6, spec D16–D18) in [`radial`]:
 //! [`solve_point`] and [`RadialSolution::fluence_on`]; its own docs hold the equations, the
-//! decisions with their measurements and T15 (not wired into [`method::PopMethod`] yet,
-//! CPU only). Importance propagation (Sec 5.2) is not built;
-//! the GPU kernel propagates directional, environment and emission ordinates (what the CPU
-//! code does), and the grids, resampling and links are still built on the host.
+//! decisions with their measurements and T15; [`method::PopMethod`] runs one per point
+//! light, on the CPU or on the GPU ([`radial::gpu`], `radial.wgsl`: the same step, bitwise
+//! equal to CPU-f32 at a fixed step count on lavapipe, `tests/pop_gpu.rs`). Importance
+//! propagation (Sec 5.2) is not built; the GPU kernels propagate directional, environment
+//! and emission ordinates and point lights' radial grids (what the CPU code does), and the
+//! grids, resampling and links are still built on the host.
 //!
 //! ## GPU ([`gpu`], `pop.wgsl`, f32)
 //! Per ordinate the host builds the [`CpuPop`] (resampling, links T and γ, Eq 8's u,
