@@ -34,29 +34,40 @@
 //! **Settings of a method's own parameters** (`Method::param_settings`, a registry hook: no
 //! method is named here). Each runs at downsampling [`STEP_DOWNSAMPLE`] in f32, converged
 //! ([`STEP_TOLERANCE`]) and at its own fixed step counts ([`param_settings`]). POP has two
-//! kinds: 8 and 216 ordinates per environment light (with its default 64, the paper's
-//! N ∈ {8, 64, 216}; labelled `… ordinates=8`, rendered only on scenes with an environment
-//! light, where N matters: none of the four datasets has one, so they add nothing to a full
-//! run), and its variants `pop:residuum` (POP Sec 5.4, Eq 10 switch) and `pop:residuum-fld`
-//! (ours), recorded as methods of their own. POP's fixed step count is the paper's M = 16
-//! (`pop`'s `ds=2 steps=16 f32`; orders.csv has it beside the converged point). POP has
-//! points on `nebula` and `shell_core` only: it takes no volume source (`emissive_cloud`,
-//! `plume`) and refuses point lights (`plume`), `skipped.csv`.
-//! POP's additions to a full run, measured on `nebula` alone (`--scenes scenes/nebula.toml
-//! --methods pop --out <scratch>`, 2 cores shared with other jobs' compiles, load 3–6, so
-//! every time is several times the committed run's: `pop` ds=4 tol=1e-2 10.5 s here, 1.8 s
-//! there): `pop` `ds=2 steps=16` 11.1 s (error 0.536; converged at ds=2 1e-3: 17.1 s,
-//! 1.138), `pop:residuum` 80.9 s (error 1.221; 1443 steps per channel in all, the
-//! ordinates' up to the switch and the isotropic ones on 64³ × 3 channels to 10⁻³),
-//! `pop:residuum-fld` 4.7 s (error 0.350, POP's best point by far; before the vacuum voxels'
-//! power was taken out of its FLD source it hit FLD's 5000-iteration cap, 19.9 s, error
-//! 0.366: `solvers::pop::residuum`, "Vacuum voxels"): 96.7 s together against 117.1 s for
-//! `pop`'s eight ladder points in the same run; `shell_core` adds its own share (not
-//! measured alone). On `environment_sphere` (16³, constant environment, `--reference-spp
-//! 1024`) the ordinate settings render: converged at ds=2, N = 8 / 64 / 216: error 0.290 /
-//! 0.266 / 0.264 in 0.06 / 0.46 / 1.46 s; at M = 16 0.234 / 0.216 / 0.215; `pop:residuum`
-//! 0.334, `pop:residuum-fld` 0.181 (that run predates the vacuum change; the sphere's
-//! vacuum corners held power in flight).
+//! kinds: 8 and 216 ordinates (with its default 64, the paper's N ∈ {8, 64, 216}; labelled
+//! `… ordinates=8`), rendered only on scenes with an environment light or volume emission,
+//! the two things POP spreads over its ordinate set (a directional light is one ordinate and
+//! a point light a radial grid whatever N: on `nebula` and `shell_core` the settings would
+//! repeat the default bit for bit), and its variants `pop:residuum` (POP Sec 5.4, Eq 10
+//! switch) and `pop:residuum-fld` (ours), recorded as methods of their own. POP's fixed step
+//! count is the paper's M = 16 (`pop`'s `ds=2 steps=16 f32`; orders.csv has it beside the
+//! converged point).
+//!
+//! **POP in the full run** (2026-12-05, 2-vCPU AMD EPYC; the other methods' render times
+//! were within 6 % of the previous committed run's, median ratio 0.94, so the machine was
+//! comparable). POP has points on all four datasets (`emissive_cloud` and `plume` through
+//! its emission ordinates, `plume`'s point light through its radial grid; `skipped.csv` is
+//! empty). Errors (relative L2 vs the path tracer) converged at ds=2 / at M = 16: `nebula`
+//! 1.138 / 0.536, `emissive_cloud` 0.918 / 0.333, `shell_core` 3.456 / 0.325, `plume`
+//! 10.95 / 0.527: the converged isotropised random walk is several times too bright
+//! (`solvers::pop`, W2), the paper's M = 16 stops it early and lands closer.
+//! `pop:residuum-fld` 0.350 / 0.602 / 0.852 / 8.21. The ordinate settings, N = 8 / 64 /
+//! 216: `emissive_cloud` converged 0.912 / 0.918 / 0.919 in 3.8 / 30.7 / 102.7 s, at M = 16
+//! 0.326 / 0.333 / 0.333 in 0.17 / 0.86 / 2.83 s; `plume` converged 10.951 / 10.951 / 10.951
+//! in 36.9 / 165.6 / 522.1 s, at M = 16 0.5272 / 0.5273 / 0.5273 in 12.0 / 14.9 / 20.3 s:
+//! on these scenes N hardly moves the error (the random walk's bias dominates), it moves
+//! the time ∝ N. **Cost:** POP's points took 1750 s of the run's 2607 s of render time
+//! (`plume` 1431 s, its converged N = 216 point alone 522 s; before emission and point
+//! lights: 29 s on two datasets); `--methods` without `pop` leaves it out. On
+//! `environment_sphere` (16³, constant environment, `--reference-spp 1024`, an earlier
+//! run): converged at ds=2, N = 8 / 64 / 216: error 0.290 / 0.266 / 0.264 in 0.06 / 0.46 /
+//! 1.46 s; at M = 16 0.234 / 0.216 / 0.215.
+//! **POP by g** (`accuracy_hg`, converged at ds=2, 1e-3, f32; same run): `cloud_directional`
+//! g = 0.3 / 0.7 / 0.9 / 0.99: 1.42 / 1.51 / 2.80 / 27.3, `shell_core` 2.26 / 1.65 / 2.35 /
+//! 6.57, growing with g like the paper (non-similarity) variants of FLD-LP (22.3 and 3.58 at
+//! 0.99) and LBM (26.3, 5.15), not falling as spec W1 leads one to expect: the pipeline
+//! re-emits σs·φ_s isotropically, which a forward-peaked collided field is not (POP's
+//! view-dependent L_acc, `pipeline::raymarch::Term::ViewSource`, is not used by the atlas).
 //!
 //! **Lights a method refuses.** A method that takes the lights itself refuses sphere lights,
 //! and point lights unless it has radial grids for them (`Capabilities::direct_points`: POP);
@@ -241,9 +252,9 @@ pub struct Setting {
     /// ([`solvers::method::Method::param_settings`]): this method renders instead of the
     /// entry's, and the point is recorded under its name.
     pub method: Option<MethodRef>,
-    /// Rendered only on scenes with an environment light
-    /// ([`solvers::method::ParamSetting::environment_only`]).
-    pub environment_only: bool,
+    /// Rendered only on scenes with an environment light or volume emission
+    /// ([`solvers::method::ParamSetting::ordinate_set_only`]).
+    pub ordinate_set_only: bool,
 }
 
 impl Setting {
@@ -426,7 +437,7 @@ fn pt_settings(_quick: bool, spp: &[u32]) -> Vec<Setting> {
             spp: s,
             steps: None,
             method: None,
-            environment_only: false,
+            ordinate_set_only: false,
         })
         .collect()
 }
@@ -472,7 +483,7 @@ fn grid_setting(downsample: usize, tolerance: f64, precision: Precision) -> Sett
         spp: 0,
         steps: None,
         method: None,
-        environment_only: false,
+        ordinate_set_only: false,
     }
 }
 
@@ -500,21 +511,22 @@ pub fn param_settings(method: &MethodRef, quick: bool) -> Vec<Setting> {
                 s.label = format!("{} {l}", s.label);
             }
             s.method = Some(own.clone());
-            s.environment_only = ps.environment_only;
+            s.ordinate_set_only = ps.ordinate_set_only;
             v.push(s);
         }
     }
     v
 }
 
-/// Whether `scene` has an environment light (where settings that are
-/// [`Setting::environment_only`] render).
-fn has_environment(scene: &Prepared) -> bool {
-    scene.channels.iter().any(|c| {
-        c.lights
-            .iter()
-            .any(|l| matches!(l, solvers::scene::Light::Environment { .. }))
-    })
+/// Whether `scene` has an environment light or renders volume emission (where settings that
+/// are [`Setting::ordinate_set_only`] render: POP spreads both over its ordinate set).
+fn uses_ordinate_set(scene: &Prepared) -> bool {
+    scene.effects.contains(solvers::scene::Effect::Emission)
+        || scene.channels.iter().any(|c| {
+            c.lights
+                .iter()
+                .any(|l| matches!(l, solvers::scene::Light::Environment { .. }))
+        })
 }
 
 /// The downsampling of the fixed-step settings: 2 (quick: 4), where the full ladder has
@@ -1062,7 +1074,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         );
         for m in &methods {
             for st in m.settings(quick, &spp, grid) {
-                if st.environment_only && !has_environment(scene) {
+                if st.ordinate_set_only && !uses_ordinate_set(scene) {
                     continue;
                 }
                 let backends_run = backends
@@ -1145,7 +1157,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
         });
         let bar = progress(jobs.len() as u64, &args.common, &scene.name);
         for (m, s, b) in &jobs {
-            if !out.unit() || (s.environment_only && !has_environment(scene)) {
+            if !out.unit() || (s.ordinate_set_only && !uses_ordinate_set(scene)) {
                 bar.inc(1);
                 continue;
             }
@@ -1388,8 +1400,9 @@ pub const HG_TITLE: &str = "Accuracy atlas: anisotropy variants under HG g (pape
 pub const HG_SCENES: [&str; 2] = ["scenes/cloud_directional.toml", "scenes/shell_core.toml"];
 /// Its values of g (issue 12, acceptance 3).
 pub const HG_G: &str = "0.3,0.7,0.9,0.99";
-/// Its methods: both variants of CDA, FLD-LP and LBM.
-pub const HG_METHODS: &str = "cda,cda:similarity,fld:lp,fld:lp:similarity,lbm,lbm:similarity";
+/// Its methods: both variants of CDA, FLD-LP and LBM, and POP (issue 17, acceptance 4: its
+/// errors by g next to the others; it has no variant, a lobe's anisotropy is its own Eq 4).
+pub const HG_METHODS: &str = "cda,cda:similarity,fld:lp,fld:lp:similarity,lbm,lbm:similarity,pop";
 /// The size of its full run: the scenes coarsened to 32³, 32×32 pixels, a 2048-spp reference.
 pub const HG_FULL: [&str; 6] = [
     "--coarsen",
@@ -1430,7 +1443,7 @@ impl Experiment for AccuracyCost {
 
     /// The atlas, and its anisotropy sub-run (issue 12, acceptance 3) into its own folder
     /// `accuracy_hg`: [`HG_SCENES`] at HG g ∈ [`HG_G`], both anisotropy variants of CDA,
-    /// FLD-LP and LBM ([`HG_METHODS`]) at tolerance 1e-3 in f32 (quick: downsampling 4; full:
+    /// FLD-LP and LBM, and POP ([`HG_METHODS`]) at tolerance 1e-3 in f32 (quick: downsampling 4; full:
     /// 4 and 2) and no path-tracer points; [`HG_FULL`] sizes the full run.
     fn figure_runs(quick: bool) -> Vec<FigureRun> {
         let root = crate::common::workspace_root();

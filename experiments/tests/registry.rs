@@ -72,8 +72,9 @@ fn accuracy_cost_quick_atlas() {
     for s in ["nebula", "emissive_cloud", "shell_core", "plume"] {
         assert!(dir.join(format!("pareto_{s}.png")).exists());
         let mine: Vec<_> = points.rows().filter(|p| p.get("scene") == s).collect();
-        // Every method has a point, or its plan refused the scene with a typed reason (POP
-        // takes no volume source; methods that take the lights refuse point lights).
+        // Every method has a point, or its plan refused the scene with a typed reason (a
+        // method without a volume source refuses emission; one that takes the lights and has
+        // no baked stand-in refuses point lights).
         let skipped = Table::read(&dir.join("skipped.csv")).unwrap();
         for m in experiments::accuracy_cost::methods() {
             // A method whose lights the scene refuses runs as its baked stand-in (LPM on the

@@ -533,7 +533,7 @@ pub trait Method: fmt::Debug + Send + Sync {
     }
 
     /// Settings of its own parameters worth points of their own in the accuracy atlas
-    /// ([`ParamSetting`]; POP: 8 and 216 ordinates per environment light, and its residuum
+    /// ([`ParamSetting`]; POP: 8 and 216 ordinates per environment light and for emission, and its residuum
     /// variants); none by default. Each is rendered at the atlas's converged setting and at
     /// its [`Method::step_settings`] counts.
     fn param_settings(&self) -> Vec<ParamSetting> {
@@ -567,9 +567,10 @@ pub struct ParamSetting {
     pub label: String,
     /// The method with that setting.
     pub method: Box<dyn Method>,
-    /// It changes the result only where a scene has an environment light (POP's ordinates
-    /// per environment light): the atlas renders it on such scenes only.
-    pub environment_only: bool,
+    /// It changes the result only where a scene has an environment light or volume emission
+    /// (POP's ordinate set, which both are spread over): the atlas renders it on such scenes
+    /// only.
+    pub ordinate_set_only: bool,
 }
 
 /// Named numeric parameters of a method (`omega=1.5`); a family consumes the ones it knows
@@ -806,9 +807,9 @@ mod tests {
     }
 
     /// A family's fixed step counts run exactly that many steps (the atlas labels a point by
-    /// its count; a method without a volume source, POP, is lit by a directional light
-    /// instead of the emission), and a baked twin takes the lights its Direct original
-    /// refuses.
+    /// its count; every family takes a volume source today, one without it would be lit by
+    /// a directional light instead of the emission), and a baked twin takes the lights its
+    /// Direct original refuses.
     #[test]
     fn step_settings_run_exactly_their_counts_and_baked_twins_take_point_lights() {
         let grid = Grid::cube(6, 1.0).unwrap();
