@@ -345,6 +345,19 @@ impl GpuContext {
         Ok(())
     }
 
+    /// `groups` as the u32 a dispatch takes, or a typed error naming `what` where it does not
+    /// fit (the per-dimension limit is checked by [`GpuContext::check_workgroups`] and
+    /// [`GpuContext::split_workgroups`]).
+    pub fn workgroup_count(&self, what: &str, groups: u64) -> Result<u32, GpuError> {
+        u32::try_from(groups).map_err(|_| GpuError::TooLarge {
+            what: what.to_string(),
+            needed: groups,
+            limit: u64::from(u32::MAX),
+            limit_name: "u32 workgroup count",
+            adapter: self.info.name.clone(),
+        })
+    }
+
     /// Fails with a typed error if a dispatch of `groups` workgroups along one dimension exceeds
     /// the device's limit.
     pub fn check_workgroups(&self, what: &str, groups: u32) -> Result<(), GpuError> {

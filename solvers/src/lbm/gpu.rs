@@ -120,14 +120,7 @@ impl<'a> GpuLbm<'a> {
             &format!("a state buffer of the {nx}x{ny}x{nz} lattice"),
             state_bytes,
         )?;
-        let groups =
-            u32::try_from(sites.div_ceil(u64::from(WG))).map_err(|_| GpuError::TooLarge {
-                what: "LBM workgroups".into(),
-                needed: sites.div_ceil(u64::from(WG)),
-                limit: u64::from(u32::MAX),
-                limit_name: "u32 workgroup count",
-                adapter: ctx.info().name.clone(),
-            })?;
+        let groups = ctx.workgroup_count("LBM workgroups", sites.div_ceil(u64::from(WG)))?;
         let dispatch = ctx.split_workgroups("the LBM step", groups)?;
         let groups = dispatch[0] * dispatch[1];
         let setup = Setup::<f32>::new(medium, injection, config)?;

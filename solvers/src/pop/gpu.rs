@@ -191,25 +191,12 @@ impl<'a> GpuPop<'a> {
         ] {
             ctx.check_storage_buffer(&what(name), bytes)?;
         }
-        let groups = u32::try_from(groups64).map_err(|_| GpuError::TooLarge {
-            what: "POP reduce workgroups".into(),
-            needed: groups64,
-            limit: u64::from(u32::MAX),
-            limit_name: "u32 workgroup count",
-            adapter: adapter.clone(),
-        })?;
+        let groups = ctx.workgroup_count("POP reduce workgroups", groups64)?;
         ctx.check_workgroups(
             "the POP reduction (one workgroup per slice and channel)",
             groups,
         )?;
-        let cell_groups =
-            u32::try_from(cells.div_ceil(u64::from(WG))).map_err(|_| GpuError::TooLarge {
-                what: "POP workgroups".into(),
-                needed: cells.div_ceil(u64::from(WG)),
-                limit: u64::from(u32::MAX),
-                limit_name: "u32 workgroup count",
-                adapter: adapter.clone(),
-            })?;
+        let cell_groups = ctx.workgroup_count("POP workgroups", cells.div_ceil(u64::from(WG)))?;
         let dispatch = ctx.split_workgroups("the POP step", cell_groups)?;
         let params = GpuParams {
             n: n as u32,

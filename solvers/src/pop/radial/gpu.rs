@@ -182,25 +182,13 @@ impl<'a> GpuRadial<'a> {
         for (name, bytes) in sizes {
             ctx.check_storage_buffer(&what(name), bytes)?;
         }
-        let groups = u32::try_from(groups64).map_err(|_| GpuError::TooLarge {
-            what: "radial reduce workgroups".into(),
-            needed: groups64,
-            limit: u64::from(u32::MAX),
-            limit_name: "u32 workgroup count",
-            adapter: adapter.clone(),
-        })?;
+        let groups = ctx.workgroup_count("radial reduce workgroups", groups64)?;
         ctx.check_workgroups(
             "the radial reduction (one workgroup per shell and channel)",
             groups,
         )?;
         let slot_groups =
-            u32::try_from(slots.div_ceil(u64::from(WG))).map_err(|_| GpuError::TooLarge {
-                what: "radial workgroups".into(),
-                needed: slots.div_ceil(u64::from(WG)),
-                limit: u64::from(u32::MAX),
-                limit_name: "u32 workgroup count",
-                adapter: adapter.clone(),
-            })?;
+            ctx.workgroup_count("radial workgroups", slots.div_ceil(u64::from(WG)))?;
         let dispatch = ctx.split_workgroups("the radial step", slot_groups)?;
         let params = RadialParams {
             na2: na2 as u32,
