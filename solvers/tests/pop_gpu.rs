@@ -80,6 +80,18 @@ fn rel_where_large(x: &[f32], y: &[f32], stride: usize, slot: usize) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// max |g − c|/c over the voxels where the CPU's φ exceeds `floor` times its maximum (which
+/// must be positive).
+fn max_rel_above(gpu: &[f64], cpu: &[f64], floor: f64) -> f64 {
+    let max = cpu.iter().cloned().fold(0.0, f64::max);
+    assert!(max > 0.0);
+    gpu.iter()
+        .zip(cpu)
+        .filter(|(_, c)| **c > floor * max)
+        .map(|(g, c)| (g - c).abs() / c)
+        .fold(0.0, f64::max)
+}
+
 /// T17 at fixed M: a random two-channel medium (g = 0.7 and 0.95), a skew ordinate, a point
 /// observer (L_acc of Eq 8), open and periodic lateral faces, and the paper's per-cell init
 /// with the literal Eq 8 and an orthographic observer, M = 64, 12³. φ, J and L_acc
@@ -467,15 +479,7 @@ fn method_on_the_gpu_matches_cpu_f32_under_an_environment() {
                 )
                 .unwrap();
             assert_eq!(gpu.steps, cpu.steps);
-            let max = cpu.phi.iter().cloned().fold(0.0, f64::max);
-            assert!(max > 0.0);
-            let worst = gpu
-                .phi
-                .iter()
-                .zip(&cpu.phi)
-                .filter(|(_, c)| **c > 1e-6 * max)
-                .map(|(g, c)| (g - c).abs() / c)
-                .fold(0.0, f64::max);
+            let worst = max_rel_above(&gpu.phi, &cpu.phi, 1e-6);
             eprintln!("method pop GPU vs CPU-f32 (environment + sun): max relative φ {worst:.3e}");
             assert!(worst <= 1e-3, "{worst:e}");
             let (bg, bc) = (gpu.balance.unwrap(), cpu.balance.unwrap());
@@ -526,15 +530,7 @@ fn method_on_the_gpu_takes_emission() {
             };
             let gpu = m.solve(&Backend::Gpu(ctx), &p, &t, &mut |_, _| {}).unwrap();
             let cpu = m.solve(&f32_cpu, &p, &t, &mut |_, _| {}).unwrap();
-            let max = cpu.phi.iter().cloned().fold(0.0, f64::max);
-            assert!(max > 0.0);
-            let worst = gpu
-                .phi
-                .iter()
-                .zip(&cpu.phi)
-                .filter(|(_, c)| **c > 1e-6 * max)
-                .map(|(g, c)| (g - c).abs() / c)
-                .fold(0.0, f64::max);
+            let worst = max_rel_above(&gpu.phi, &cpu.phi, 1e-6);
             let (bg, bc) = (gpu.balance.unwrap(), cpu.balance.unwrap());
             let books = (bg.source - bg.outflow - bg.absorbed).abs() / bg.source;
             eprintln!(
@@ -764,15 +760,7 @@ fn method_on_the_gpu_takes_point_lights() {
                 &mut |_, _| {},
             )
             .unwrap();
-        let max = cpu.phi.iter().cloned().fold(0.0, f64::max);
-        assert!(max > 0.0);
-        let worst = gpu
-            .phi
-            .iter()
-            .zip(&cpu.phi)
-            .filter(|(_, c)| **c > 1e-3 * max)
-            .map(|(g, c)| (g - c).abs() / c)
-            .fold(0.0, f64::max);
+        let worst = max_rel_above(&gpu.phi, &cpu.phi, 1e-3);
         let (bg, bc) = (gpu.balance.unwrap(), cpu.balance.unwrap());
         let books = (bg.source - bg.outflow - bg.absorbed).abs() / bg.source;
         eprintln!(

@@ -598,6 +598,70 @@ impl RadialLedger {
     }
 }
 
+impl RadialLedger {
+    /// Ends the channel with its geometric tail: the power in flight is booked as absorbed
+    /// and escaped in the proportions of the last step's losses `[absorbed, escaped]` (all
+    /// absorbed if that step lost nothing). Returns the amounts booked and the fraction of
+    /// the injected power that was still in flight.
+    fn book_tail(&mut self, [da, de]: [f64; 2]) -> ([f64; 2], f64) {
+        let r = self.in_flight;
+        let (fa, fe) = if da + de > 0.0 {
+            (da / (da + de), de / (da + de))
+        } else {
+            (1.0, 0.0)
+        };
+        self.absorbed += r * fa;
+        self.escaped += r * fe;
+        self.in_flight = 0.0;
+        let frac = if self.injected > 0.0 {
+            r / self.injected
+        } else {
+            0.0
+        };
+        ([r * fa, r * fe], frac)
+    }
+}
+
+/// The tail's prediction of Σ_m R^m: the visits so far plus the geometric rest
+/// R^m ρ/(1 − ρ) (∞ at ρ ≥ 1).
+fn predicted_total(visits: f64, in_flight: f64, rho: f64) -> f64 {
+    let rest = if rho < 1.0 {
+        in_flight * rho / (1.0 - rho)
+    } else {
+        f64::INFINITY
+    };
+    visits + rest
+}
+
+/// Whether a channel's tail is due: light is in flight, the prediction Σ_m R^m +
+/// R^m ρ/(1 − ρ) is `now` and was `then` [`TAIL_WINDOW`] steps earlier, stable to `eps`.
+/// Guards: before light reaches a boundary or is absorbed, R^m is conserved to rounding
+/// (ρ = 1 − 10⁻¹⁶) and any prediction is noise.
+fn tail_due(led: &RadialLedger, rho: f64, now: f64, then: f64, eps: f64) -> bool {
+    led.in_flight > 0.0
+        && rho < 1.0 - 1e-9
+        && led.injected - led.in_flight >= 1e-3 * led.injected
+        && now.is_finite()
+        && (now - then).abs() <= eps * now
+}
+
+/// Adds channel `ch`'s geometric tail to `acc` (`[cell][channel][φ, J]`): φ += f·Q·w and
+/// J += f·Q·a·w per cell (w = Δr/V), and empties its `state` (`[cell][channel][Q, a]`).
+fn add_tail<T: Real>(state: &mut [T], acc: &mut [T], weight: &[T], nc: usize, ch: usize, f: f64) {
+    for (cell, &w) in weight.iter().enumerate() {
+        let s = (cell * nc + ch) * S;
+        let (q, a) = (state[s].f(), state[s + 1].f());
+        if q == 0.0 {
+            continue;
+        }
+        let o = (cell * nc + ch) * ACC;
+        acc[o] = acc[o] + T::c(f * q) * w;
+        acc[o + 1] = acc[o + 1] + T::c(f * q * a) * w;
+        state[s] = T::zero();
+        state[s + 1] = T::zero();
+    }
+}
+
 /// h(τ) = (1 − e^{−τ})/τ, 1 at τ = 0: the mean of e^{−σx} over a cell of optical extent τ.
 #[inline]
 fn into(tau: f64) -> f64 {
@@ -1006,12 +1070,8 @@ impl<T: Real> RadialPop<T> {
             } else {
                 0.0
             };
-            let rest = if tr.rho < 1.0 {
-                led.in_flight * tr.rho / (1.0 - tr.rho)
-            } else {
-                f64::INFINITY
-            };
-            tr.predicted.push(tr.visits + rest);
+            tr.predicted
+                .push(predicted_total(tr.visits, led.in_flight, tr.rho));
             worst = worse_residual(worst, led.in_flight, led.injected);
         }
         self.history.push(worst);
@@ -1075,50 +1135,22 @@ impl<T: Real> RadialPop<T> {
         for ch in 0..nc {
             let tr = &self.tails[ch];
             let m = tr.predicted.len();
-            if tr.done.is_some() || m <= TAIL_WINDOW || self.ledger[ch].in_flight <= 0.0 {
-                continue;
-            }
-            // Guards: before light reaches a boundary or is absorbed, R^m is conserved to
-            // rounding (ρ = 1 − 10⁻¹⁶) and any prediction is noise.
-            let led = &self.ledger[ch];
-            if tr.rho >= 1.0 - 1e-9 || led.injected - led.in_flight < 1e-3 * led.injected {
-                continue;
-            }
-            let (now, then) = (tr.predicted[m - 1], tr.predicted[m - 1 - TAIL_WINDOW]);
-            if !(now.is_finite() && (now - then).abs() <= eps * now) {
+            if tr.done.is_some()
+                || m <= TAIL_WINDOW
+                || !tail_due(
+                    &self.ledger[ch],
+                    tr.rho,
+                    tr.predicted[m - 1],
+                    tr.predicted[m - 1 - TAIL_WINDOW],
+                    eps,
+                )
+            {
                 continue;
             }
             let f = tr.rho / (1.0 - tr.rho);
-            let [da, de] = tr.last_loss;
-            let cells = self.weight.len();
-            for cell in 0..cells {
-                let s = (cell * nc + ch) * S;
-                let (q, a) = (self.state[s].f(), self.state[s + 1].f());
-                if q == 0.0 {
-                    continue;
-                }
-                let o = (cell * nc + ch) * ACC;
-                let w = self.weight[cell];
-                self.acc[o] = self.acc[o] + T::c(f * q) * w;
-                self.acc[o + 1] = self.acc[o + 1] + T::c(f * q * a) * w;
-                self.state[s] = T::zero();
-                self.state[s + 1] = T::zero();
-            }
-            let led = &mut self.ledger[ch];
-            let r = led.in_flight;
-            let (fa, fe) = if da + de > 0.0 {
-                (da / (da + de), de / (da + de))
-            } else {
-                (1.0, 0.0)
-            };
-            led.absorbed += r * fa;
-            led.escaped += r * fe;
-            led.in_flight = 0.0;
-            let frac = if led.injected > 0.0 {
-                r / led.injected
-            } else {
-                0.0
-            };
+            let last_loss = tr.last_loss;
+            add_tail(&mut self.state, &mut self.acc, &self.weight, nc, ch, f);
+            let (_, frac) = self.ledger[ch].book_tail(last_loss);
             self.tails[ch].done = Some((self.steps, frac));
             changed = true;
         }

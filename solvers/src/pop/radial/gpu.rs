@@ -27,7 +27,10 @@
 //! and escaped, the balance holds whatever they are. With ε = 0 and no tail (a fixed step
 //! count) nothing is read until the end.
 
-use super::{ACC, LINKS, RadialLedger, RadialPop, RadialSolution, S, TAIL_WINDOW};
+use super::{
+    ACC, LINKS, Octahedral, RadialGrid, RadialLedger, RadialPop, RadialSolution, S, TAIL_WINDOW,
+    add_tail, predicted_total, tail_due,
+};
 use crate::SolverError;
 use crate::gpu::kernel::{
     Access, Checkpointed, Kernel, KernelSpec, run_checkpointed, struct_layout,
@@ -121,7 +124,12 @@ struct Tail {
 #[derive(Debug)]
 pub struct GpuRadial<'a> {
     ctx: &'a GpuContext,
-    cpu: RadialPop<f32>,
+    /// The uploaded grid's geometry, channels and Δr/V per cell (for the result and the
+    /// tail; the rest of the host state lives on the device only).
+    grid: RadialGrid,
+    oct: Octahedral,
+    nc: usize,
+    weight: Vec<f32>,
     dispatch: [u32; 2],
     groups: u32,
     b: Buffers,
@@ -278,7 +286,10 @@ impl<'a> GpuRadial<'a> {
             tolerance: 0.0,
             tail: None,
             failed: None,
-            cpu: pop,
+            grid: pop.grid,
+            oct: pop.oct,
+            nc,
+            weight: pop.weight,
         })
     }
 
@@ -318,12 +329,11 @@ impl<'a> GpuRadial<'a> {
     /// The result so far, with the accumulators read back; `history` holds R/P_inj at the
     /// checkpoints, at the steps in [`RadialSolution::history_steps`].
     pub fn solution(&self, stop: Stop) -> Result<RadialSolution<f32>, SolverError> {
-        let bytes = (self.cpu.acc.len() * 4) as u64;
-        let acc = self.ctx.read_buffer(&self.b.acc, bytes)?;
+        let acc = self.ctx.read_buffer(&self.b.acc, self.slot_bytes(ACC))?;
         Ok(RadialSolution {
-            grid: self.cpu.grid.clone(),
-            oct: self.cpu.oct.clone(),
-            channels: self.cpu.nc,
+            grid: self.grid.clone(),
+            oct: self.oct.clone(),
+            channels: self.nc,
             acc: bytemuck::pod_collect_to_vec(&acc),
             ledger: self.ledger.clone(),
             history: self.history.iter().map(|h| h.1).collect(),
@@ -352,30 +362,21 @@ impl<'a> GpuRadial<'a> {
         pass.dispatch_workgroups(self.groups, 1, 1);
     }
 
-    /// Adds the geometric tail to channels `chs` (rest factors `f`): reads the state and the
-    /// accumulators, adds f·Q·Δr/V to φ (and with a to J), empties the state, writes back.
+    /// Bytes of a per-slot buffer with `per` floats per cell and channel.
+    fn slot_bytes(&self, per: usize) -> u64 {
+        (self.weight.len() * self.nc * per * 4) as u64
+    }
+
+    /// Adds the geometric tail to channels `chs` (rest factors f): one read-back of the state
+    /// and the accumulators, [`add_tail`] as on the CPU, one write-back.
     fn add_tails(&mut self, chs: &[(usize, f64)]) -> Result<(), GpuError> {
-        let nc = self.cpu.nc;
-        let state_bytes = (self.cpu.state.len() * 4) as u64;
-        let acc_bytes = (self.cpu.acc.len() * 4) as u64;
         let state_buf = &self.b.states[self.parity];
         let mut state: Vec<f32> =
-            bytemuck::pod_collect_to_vec(&self.ctx.read_buffer(state_buf, state_bytes)?);
+            bytemuck::pod_collect_to_vec(&self.ctx.read_buffer(state_buf, self.slot_bytes(S))?);
         let mut acc: Vec<f32> =
-            bytemuck::pod_collect_to_vec(&self.ctx.read_buffer(&self.b.acc, acc_bytes)?);
-        for (cell, &w) in self.cpu.weight.iter().enumerate() {
-            for &(ch, f) in chs {
-                let s = (cell * nc + ch) * S;
-                let (q, a) = (f64::from(state[s]), f64::from(state[s + 1]));
-                if q == 0.0 {
-                    continue;
-                }
-                let o = (cell * nc + ch) * ACC;
-                acc[o] += (f * q) as f32 * w;
-                acc[o + 1] += (f * q * a) as f32 * w;
-                state[s] = 0.0;
-                state[s + 1] = 0.0;
-            }
+            bytemuck::pod_collect_to_vec(&self.ctx.read_buffer(&self.b.acc, self.slot_bytes(ACC))?);
+        for &(ch, f) in chs {
+            add_tail(&mut state, &mut acc, &self.weight, self.nc, ch, f);
         }
         let q = &self.ctx.queue;
         q.write_buffer(state_buf, 0, bytemuck::cast_slice(&state));
@@ -409,8 +410,8 @@ impl Checkpointed for GpuRadial<'_> {
         observer: &mut dyn FnMut(usize, f64),
     ) -> Option<Stop> {
         let p: Vec<f32> = bytemuck::pod_collect_to_vec(bytes);
-        let nc = self.cpu.nc;
-        let nr = self.cpu.grid.n_r;
+        let nc = self.nc;
+        let nr = self.grid.n_r;
         let sum = |half: usize, ch: usize| {
             let mut s = [0f64; PARTIAL];
             for k in 0..nr {
@@ -422,7 +423,7 @@ impl Checkpointed for GpuRadial<'_> {
             s
         };
         let mut due = Vec::new();
-        let mut rest_of = Vec::with_capacity(nc);
+        let mut last_loss = Vec::with_capacity(nc);
         for ch in 0..nc {
             let (a, b) = (sum(0, ch), sum(1, ch));
             let base = self.base[ch];
@@ -432,31 +433,21 @@ impl Checkpointed for GpuRadial<'_> {
             led.escaped = base.escaped + b[1] + tail.booked[1];
             led.in_flight = b[2];
             let rho = if a[2] > 0.0 { b[2] / a[2] } else { 0.0 };
-            let rest = if rho < 1.0 {
-                b[2] * rho / (1.0 - rho)
-            } else {
-                f64::INFINITY
-            };
-            tail.predicted.push((self.steps, b[3] + rest));
-            rest_of.push(([b[0] - a[0], b[1] - a[1]], rho));
+            let now = predicted_total(b[3], b[2], rho);
+            tail.predicted.push((self.steps, now));
+            last_loss.push([b[0] - a[0], b[1] - a[1]]);
             let Some(eps) = self.tail else { continue };
-            if tail.done.is_some()
-                || self.steps <= TAIL_WINDOW
-                || led.in_flight <= 0.0
-                || rho >= 1.0 - 1e-9
-                || led.injected - led.in_flight < 1e-3 * led.injected
-            {
+            if tail.done.is_some() || self.steps <= TAIL_WINDOW {
                 continue;
             }
-            let now = b[3] + rest;
             let then = tail
                 .predicted
                 .iter()
+                .rev()
                 .find(|(s, _)| *s + TAIL_WINDOW == self.steps)
                 .map(|x| x.1);
             if let Some(then) = then
-                && now.is_finite()
-                && (now - then).abs() <= eps * now
+                && tail_due(led, rho, now, then, eps)
             {
                 due.push((ch, rho / (1.0 - rho)));
             }
@@ -467,25 +458,9 @@ impl Checkpointed for GpuRadial<'_> {
                 return Some(Stop::NonFinite);
             }
             for &(ch, _) in &due {
-                let ([da, de], _) = rest_of[ch];
-                let (fa, fe) = if da + de > 0.0 {
-                    (da / (da + de), de / (da + de))
-                } else {
-                    (1.0, 0.0)
-                };
-                let led = &mut self.ledger[ch];
-                let r = led.in_flight;
+                let (booked, frac) = self.ledger[ch].book_tail(last_loss[ch]);
                 let tail = &mut self.tails[ch];
-                tail.booked[0] += r * fa;
-                tail.booked[1] += r * fe;
-                led.absorbed += r * fa;
-                led.escaped += r * fe;
-                led.in_flight = 0.0;
-                let frac = if led.injected > 0.0 {
-                    r / led.injected
-                } else {
-                    0.0
-                };
+                tail.booked = booked;
                 tail.done = Some((self.steps, frac));
             }
         }
