@@ -44,8 +44,8 @@
 //! converged point).
 //!
 //! **POP in the full run** (2026-12-05, 2-vCPU AMD EPYC; the other methods' render times
-//! were within 6 % of the previous committed run's, median ratio 0.94, so the machine was
-//! comparable). POP has points on all four datasets (`emissive_cloud` and `plume` through
+//! against the previous committed run's: median ratio 0.94 over the 123 points above 1 s,
+//! so the machine was comparable). POP has points on all four datasets (`emissive_cloud` and `plume` through
 //! its emission ordinates, `plume`'s point light through its radial grid; `skipped.csv` is
 //! empty). Errors (relative L2 vs the path tracer) converged at ds=2 / at M = 16: `nebula`
 //! 1.138 / 0.536, `emissive_cloud` 0.918 / 0.333, `shell_core` 3.456 / 0.325, `plume`
