@@ -1,7 +1,8 @@
 //! Multigrid next to SOR (issue 15, acceptance 2 and the `convergence` panels of item 4):
 //! cycles and seconds to R̄/j̄ < `--tolerance` against grid size n, for CDA and FLD-LP, on
 //! the point source (zero boundary, albedo `--albedo`, τ = 4 across the grid) and on FLD
-//! Fig 4's cloud in vacuum ([`solvers::scenes::vacuum_cloud`]), CPU f64.
+//! Fig 4's cloud in vacuum ([`solvers::scenes::vacuum_cloud`]), CPU f64 and/or the GPU (f32,
+//! `--backend`; issue 15 acceptance 7 is this experiment on a real GPU at n = 255 and 511).
 //!
 //! Multigrid is the FAS V(2,2) of [`solvers::fld::multigrid`]; SOR is FLD Algorithm 1 with
 //! the Poisson-optimal ω(n) and runs only for n ≤ `--sor-max-n` (its iterations grow like
@@ -11,14 +12,14 @@
 //!
 //! **Outputs** (`results/multigrid_scaling/`):
 //! * `steps.csv`: `problem,method,n,solver,steps,work_units,seconds,setup_seconds,stop,
-//!   final_residual` — steps are SOR iterations or multigrid cycles; work units count fine
+//!   final_residual,backend` — steps are SOR iterations or multigrid cycles; work units count fine
 //!   red-black sweeps (a smoothing sweep on level ℓ counts 8^−ℓ; SOR: its iterations);
-//! * `history.csv`: `problem,method,n,solver,step,work_units,seconds,residual` — the residual
+//! * `history.csv`: `problem,method,n,solver,step,work_units,seconds,residual,backend` — the residual
 //!   after every step at the largest n that both solvers ran;
 //! * `steps_vs_n.png`, `seconds_vs_n.png`: steps and seconds to the tolerance against n;
 //!   `residual_vs_work.png`, `residual_vs_seconds.png`: the histories.
 
-use crate::common::{CommonArgs, Ctx, list_item, progress};
+use crate::common::{BackendArgs, CommonArgs, Ctx, list_item, progress};
 use crate::experiment::{BackendSupport, Experiment, Promise};
 use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Section, table};
@@ -35,6 +36,9 @@ pub struct Args {
     /// Shared flags.
     #[command(flatten)]
     pub common: CommonArgs,
+    /// Shared backend flag (CPU runs are f64, GPU runs f32).
+    #[command(flatten)]
+    pub backend: BackendArgs,
     /// Grid sizes (odd: the point source needs a centre voxel). Default 31,63,127,255
     /// (15,31 with --quick).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<usize>)]
@@ -48,7 +52,9 @@ pub struct Args {
     /// Limiters (`cda`, `lp`, … as in `point_source --limiters`).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<FluxLimiter>, default_value = "cda,lp")]
     pub limiters: Vec<FluxLimiter>,
-    /// Stop at R̄/j̄ below this.
+    /// Stop at R̄/j̄ below this. GPU runs are f32: on the cloud neither SOR nor multigrid
+    /// gets much below 10⁻⁵ there (SOR stops at its cap, multigrid stalls; measured with
+    /// `--quick --backend gpu` on lavapipe), so pass ≥ 1e-5 with `--backend gpu`.
     #[arg(long, default_value_t = 1e-6)]
     pub tolerance: f64,
     /// Albedo of the point-source medium.
@@ -88,6 +94,8 @@ pub struct StepRow {
     pub stop: String,
     /// R̄/j̄ after the last step.
     pub final_residual: f64,
+    /// `cpu` (f64) or `gpu` (f32).
+    pub backend: &'static str,
 }
 
 #[derive(Debug, Serialize)]
@@ -100,6 +108,7 @@ struct HistoryRow {
     work_units: f64,
     seconds: f64,
     residual: f64,
+    backend: &'static str,
 }
 
 fn medium(problem: &str, n: usize, albedo: f64, seed: u64) -> Result<Medium<f64>> {
@@ -153,18 +162,22 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
         "max_iterations": args.max_iterations, "seed": args.seed,
         "multigrid": "FAS V(2,2), solvers::fld::multigrid::MgConfig::default()",
         "sor_omega": "FldConfig::poisson_optimal_omega(n)",
-        "backend": "cpu-f64",
+        "precision": "cpu f64, gpu f32",
     }))?;
+    let backends = args.backend.open()?;
+    ctx.record("backends", backends.meta());
     let out = ctx;
     let history_n = ns.iter().copied().filter(|&n| n <= sor_max).max();
-    let backend = Backend::Cpu(Precision::F64);
-    let mut jobs: Vec<(String, FluxLimiter, usize, bool)> = Vec::new();
-    for p in &args.problems {
-        for &l in &args.limiters {
-            for &n in &ns {
-                for mg in [true, false] {
-                    if mg || n <= sor_max {
-                        jobs.push((p.clone(), l, n, mg));
+    let list = backends.list(Precision::F64);
+    let mut jobs: Vec<(&Backend<'_>, String, FluxLimiter, usize, bool)> = Vec::new();
+    for backend in &list {
+        for p in &args.problems {
+            for &l in &args.limiters {
+                for &n in &ns {
+                    for mg in [true, false] {
+                        if mg || n <= sor_max {
+                            jobs.push((backend, p.clone(), l, n, mg));
+                        }
                     }
                 }
             }
@@ -172,7 +185,8 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
     }
     let bar = progress(jobs.len() as u64, &args.common, "multigrid_scaling");
     let (mut rows, mut history) = (Vec::new(), Vec::new());
-    for (problem, limiter, n, mg) in jobs {
+    for (backend, problem, limiter, n, mg) in jobs {
+        let bk = backend.kind();
         let m = medium(&problem, n, args.albedo, args.seed)?;
         let method = if limiter.is_constant() {
             "cda".to_string()
@@ -197,15 +211,15 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
         let name = solver.name();
         let t0 = Instant::now();
         let mut stamps = Vec::new();
-        let sol = fld::solve_with(&backend, &m, &Boundary::Zero, &cfg, &solver, |it, r| {
+        let sol = fld::solve_with(backend, &m, &Boundary::Zero, &cfg, &solver, |it, r| {
             stamps.push(t0.elapsed().as_secs_f64());
             if mg || it % 25 == 0 {
                 bar.set_message(format!(
-                    "{problem} {method} n={n} {name} step {it} R̄/j̄ {r:.2e}"
+                    "{problem} {method} n={n} {name} {bk} step {it} R̄/j̄ {r:.2e}"
                 ));
             }
         })
-        .with_context(|| format!("{problem} {method} n = {n} with {name}"))?;
+        .with_context(|| format!("{problem} {method} n = {n} with {name} on {bk}"))?;
         let steps = sol.steps;
         let per_step = if steps > 0 {
             sol.trace.work_units / steps as f64
@@ -227,10 +241,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
                     work_units: per_step * (i + 1) as f64,
                     seconds: stamps.get(i).map_or(f64::NAN, |&t| t - t_setup),
                     residual: r,
+                    backend: bk,
                 });
             }
         }
-        out.timing(format!("{problem}/{method}/n{n}/{name}"), sol.seconds);
+        out.timing(format!("{problem}/{method}/n{n}/{name}/{bk}"), sol.seconds);
         rows.push(StepRow {
             problem: problem.clone(),
             method,
@@ -242,6 +257,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
             setup_seconds: sol.setup_seconds,
             stop: sol.stop.to_string(),
             final_residual: sol.final_residual(),
+            backend: bk,
         });
         bar.inc(1);
     }
@@ -253,14 +269,23 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
 }
 
 fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
-    let mut keys: Vec<(String, String, &'static str)> = Vec::new();
+    type Key = (String, String, &'static str, &'static str);
+    let mut keys: Vec<Key> = Vec::new();
     for r in rows {
-        let k = (r.problem.clone(), r.method.clone(), r.solver);
+        let k = (r.problem.clone(), r.method.clone(), r.solver, r.backend);
         if !keys.contains(&k) {
             keys.push(k);
         }
     }
-    let label = |k: &(String, String, &str)| format!("{} {} {}", k.0, k.1, k.2);
+    let both = keys.iter().any(|k| k.3 == "gpu") && keys.iter().any(|k| k.3 == "cpu");
+    let label = |k: &Key| {
+        let base = format!("{} {} {}", k.0, k.1, k.2);
+        if both {
+            format!("{base} {}", k.3)
+        } else {
+            base
+        }
+    };
     let style = |s: &str| {
         if s == "sor" {
             Style::Dashed
@@ -275,7 +300,7 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
                 let pts = rows
                     .iter()
                     .filter(|r| r.problem == k.0 && r.method == k.1 && r.solver == k.2)
-                    .filter(|r| r.stop == "converged")
+                    .filter(|r| r.backend == k.3 && r.stop == "converged")
                     .map(|r| (r.n as f64, f(r)))
                     .collect();
                 Series::new(label(k), pts, style(k.2), c)
@@ -292,7 +317,7 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
     )?;
     plot(
         &out.path("seconds_vs_n.png"),
-        "Seconds to tolerance (CPU f64, converged runs)",
+        "Seconds to tolerance (CPU f64 / GPU f32, converged runs)",
         &x,
         &Axis::log("seconds"),
         &series(&|r| r.seconds.max(1e-6)),
@@ -304,6 +329,7 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
                 let pts = history
                     .iter()
                     .filter(|h| h.problem == k.0 && h.method == k.1 && h.solver == k.2)
+                    .filter(|h| h.backend == k.3)
                     .map(|h| (f(h), h.residual.max(1e-300)))
                     .filter(|p| p.0.is_finite() && p.0 > 0.0)
                     .collect();
@@ -344,14 +370,14 @@ const STEP_COLUMNS: &[&str] = &[
     "setup_seconds",
     "stop",
     "final_residual",
+    "backend",
 ];
 
 impl Experiment for MultigridScaling {
     const NAME: &'static str = "multigrid_scaling";
     const TITLE: &'static str =
         "Multigrid vs SOR: steps and seconds to tolerance against grid size";
-    const BACKEND: BackendSupport =
-        BackendSupport::CpuOnly("the CPU multigrid (the GPU kernel has SOR only)");
+    const BACKEND: BackendSupport = BackendSupport::Flag;
     type Args = Args;
     type Summary = Vec<StepRow>;
 
@@ -373,6 +399,7 @@ impl Experiment for MultigridScaling {
                     "work_units",
                     "seconds",
                     "residual",
+                    "backend",
                 ],
             ),
             Promise::file("steps_vs_n.png"),
@@ -390,52 +417,59 @@ impl Experiment for MultigridScaling {
         let t = s.csv("steps.csv")?;
         t.require(STEP_COLUMNS)?;
         let mut out = String::from(
-            "CPU f64, zero boundary, stop at R̄/j̄ below the run's tolerance (`meta.json`). Multigrid: FAS V(2,2) \
+            "CPU f64 (GPU: f32), zero boundary, stop at R̄/j̄ below the run's tolerance (`meta.json`). Multigrid: FAS V(2,2) \
              (`solvers::fld::multigrid`); SOR: FLD Algorithm 1 at the Poisson-optimal ω(n). Steps are SOR \
              iterations or multigrid cycles; work units count fine red-black sweeps. Spread: max/min − 1 of the \
              multigrid cycles over the n that converged (grid independence: issue 15 asks ≤ 25 %).\n\n",
         );
         let ns = t.distinct("n");
         let mut rows = Vec::new();
+        let mut groups = Vec::new();
         for p in t.distinct("problem") {
             for m in t.distinct("method") {
-                for solver in ["multigrid", "sor"] {
-                    let sel: Vec<_> = t
-                        .rows()
-                        .filter(|r| {
-                            r.get("problem") == p
-                                && r.get("method") == m
-                                && r.get("solver") == solver
-                        })
-                        .collect();
-                    if sel.is_empty() {
-                        continue;
+                for b in t.distinct("backend") {
+                    for solver in ["multigrid", "sor"] {
+                        groups.push((p.clone(), m.clone(), solver, b.clone()));
                     }
-                    let mut cells = vec![p.clone(), format!("`{m}`"), solver.to_string()];
-                    let mut conv = Vec::new();
-                    for n in &ns {
-                        cells.push(match sel.iter().find(|r| r.get("n") == n) {
-                            Some(r) if r.get("stop") == "converged" => {
-                                conv.push(r.num("steps"));
-                                format!("{} ({} s)", r.get("steps"), r.fixed("seconds", 2))
-                            }
-                            Some(r) => format!("{} {}", r.get("steps"), r.get("stop")),
-                            None => "–".to_string(),
-                        });
-                    }
-                    let spread = match (
-                        conv.iter().copied().reduce(f64::min),
-                        conv.iter().copied().reduce(f64::max),
-                    ) {
-                        (Some(lo), Some(hi)) if solver == "multigrid" => {
-                            format!("{:.0} %", 100.0 * (hi / lo - 1.0))
-                        }
-                        _ => "–".to_string(),
-                    };
-                    cells.push(spread);
-                    rows.push(cells);
                 }
             }
+        }
+        for (p, m, solver, b) in groups {
+            let sel: Vec<_> = t
+                .rows()
+                .filter(|r| {
+                    r.get("problem") == p
+                        && r.get("method") == m
+                        && r.get("solver") == solver
+                        && r.get("backend") == b
+                })
+                .collect();
+            if sel.is_empty() {
+                continue;
+            }
+            let mut cells = vec![p.clone(), format!("`{m}`"), format!("{solver} ({b})")];
+            let mut conv = Vec::new();
+            for n in &ns {
+                cells.push(match sel.iter().find(|r| r.get("n") == n) {
+                    Some(r) if r.get("stop") == "converged" => {
+                        conv.push(r.num("steps"));
+                        format!("{} ({} s)", r.get("steps"), r.fixed("seconds", 2))
+                    }
+                    Some(r) => format!("{} {}", r.get("steps"), r.get("stop")),
+                    None => "–".to_string(),
+                });
+            }
+            let spread = match (
+                conv.iter().copied().reduce(f64::min),
+                conv.iter().copied().reduce(f64::max),
+            ) {
+                (Some(lo), Some(hi)) if solver == "multigrid" => {
+                    format!("{:.0} %", 100.0 * (hi / lo - 1.0))
+                }
+                _ => "–".to_string(),
+            };
+            cells.push(spread);
+            rows.push(cells);
         }
         let mut head: Vec<String> = ["problem", "method", "solver"].map(String::from).to_vec();
         head.extend(ns.iter().map(|n| format!("n = {n}")));

@@ -12,9 +12,7 @@
 //! Errors (in `runs.csv` and `results/README.md`): relative L2 error of φ against Grosjean
 //! over all voxels with 0 < τ < 1 ("near the source"), and over the +x profile up to τ = 1.5.
 
-use crate::common::{
-    BackendArgs, BackendChoice, CommonArgs, Ctx, PrecisionArg, list_item, progress, value_names,
-};
+use crate::common::{BackendArgs, CommonArgs, Ctx, PrecisionArg, list_item, progress, value_names};
 use crate::experiment::{BackendSupport, Experiment, FigureRun, Promise};
 use crate::plot::{Axis, Series, Style, plot};
 use crate::report::{Row, Section, table};
@@ -67,7 +65,7 @@ pub struct Args {
     #[arg(long, default_value_t = 20_000, value_parser = crate::common::count_usize)]
     pub max_iterations: usize,
     /// Solvers, each run on every case: `sor` (red-black SOR, FLD Algorithm 1, the
-    /// reference) and/or `multigrid` (FAS V(2,2), `solvers::fld::multigrid`, CPU only).
+    /// reference) and/or `multigrid` (FAS V(2,2), `solvers::fld::multigrid`, CPU and GPU).
     /// The plots and the error tables use the first; `rel_l2_vs_first_solver` in `runs.csv`
     /// compares the others with it.
     #[arg(long, value_delimiter = ',', value_enum, default_value = "sor")]
@@ -79,7 +77,7 @@ pub struct Args {
 pub enum SolverArg {
     /// Red-black SOR (FLD Algorithm 1).
     Sor,
-    /// FAS multigrid, V(2,2) cycles (CPU only).
+    /// FAS multigrid, V(2,2) cycles (CPU and GPU).
     Multigrid,
 }
 
@@ -245,12 +243,6 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
         if !solvers.contains(&sv) {
             solvers.push(sv);
         }
-    }
-    if solvers.contains(&SolverArg::Multigrid) && args.backend.backend != BackendChoice::Cpu {
-        bail!(
-            "--solver multigrid runs on the CPU only (GPU multigrid is not implemented); \
-             use --backend cpu"
-        );
     }
     let boundaries: Vec<&'static str> = if args.boundary.contains(&BoundaryArg::Auto) {
         vec![]

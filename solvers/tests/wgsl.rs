@@ -1,4 +1,6 @@
-//! Every `.wgsl` file of the workspace parses and validates with naga, without any GPU.
+//! Every `.wgsl` file of the workspace parses and validates with naga, without any GPU. A file
+//! whose lines include `// requires: a.wgsl` is validated with `a.wgsl` (a path relative to it)
+//! prepended, as its host spec prepends it (`concat!` of both sources).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -30,7 +32,18 @@ fn every_wgsl_file_validates_with_naga() {
     );
     let mut failures = Vec::new();
     for file in &files {
-        let source = std::fs::read_to_string(file).unwrap();
+        let own = std::fs::read_to_string(file).unwrap();
+        let mut source = String::new();
+        for line in own.lines() {
+            if let Some(rest) = line.strip_prefix("// requires: ") {
+                let name = rest.split_whitespace().next().unwrap();
+                let dep = file.parent().unwrap().join(name);
+                source.push_str(&std::fs::read_to_string(&dep).unwrap_or_else(|e| {
+                    panic!("{} requires {}: {e}", file.display(), dep.display())
+                }));
+            }
+        }
+        source.push_str(&own);
         let module = match naga::front::wgsl::parse_str(&source) {
             Ok(m) => m,
             Err(e) => {

@@ -3,6 +3,8 @@
 // mirrors its `#[repr(C)] GpuParams` and the bindings its `SPEC` (checked by
 // `tests/kernel_contract.rs`).
 //
+// requires: limiter.wgsl (the flux limiter and the LIMITER override; `SPEC` prepends it).
+//
 // Layout (same as the CPU kernel, see `fld/cpu.rs`): each field holds two packed
 // checkerboards, colour c at offset c * plen. Colour c keeps, per row (j, k), the voxels
 // i = 2m + s with s = (c + j + k) mod 2 at position m of a row of h values. The
@@ -12,9 +14,6 @@
 // Stopping: `state.done` is set by `reduce` once the residual is below the tolerance (or not
 // finite); every kernel then returns at once, so the host may record more iterations than
 // needed and read back only every few of them.
-
-// Which flux limiter (FLD Table 2): 0 CDA, 1 sum, 2 max, 3 Kershaw, 4 Larsen-n, 5 LP.
-override LIMITER: u32 = 5u;
 
 struct Params {
     nx: u32,
@@ -72,58 +71,6 @@ struct State {
 var<workgroup> wg_done: u32;
 var<workgroup> red: array<f32, 256>;
 
-// F(R) of FLD Table 2, written as in `fld/limiter.rs` so f32 neither overflows nor cancels.
-fn limiter(r_in: f32) -> f32 {
-    let r = max(r_in, 0.0);
-    switch LIMITER {
-        case 1u: {
-            return 1.0 / (3.0 + r);
-        }
-        case 2u: {
-            return 1.0 / max(3.0, r);
-        }
-        case 3u: {
-            // 2 / (3 + sqrt(9 + 4R^2)) with a scaled hypotenuse.
-            let m = max(3.0, 2.0 * r);
-            let a = 3.0 / m;
-            let b = 2.0 * r / m;
-            return 2.0 / (3.0 + m * sqrt(a * a + b * b));
-        }
-        case 4u: {
-            let n = P.larsen_n;
-            let m = max(3.0, r);
-            let s = pow(3.0 / m, n) + pow(r / m, n);
-            return 1.0 / (m * pow(s, 1.0 / n));
-        }
-        case 5u: {
-            if (r <= 2.0) {
-                // Levermore-Pomraning through its continued fraction (depth 10).
-                let a = r * r;
-                var a_prev = 1.0;
-                var a_cur = 3.0;
-                var b_prev = 0.0;
-                var b_cur = 1.0;
-                for (var k = 1u; k <= 10u; k = k + 1u) {
-                    let bk = f32(2u * k + 3u);
-                    let a_next = bk * a_cur + a * a_prev;
-                    let b_next = bk * b_cur + a * b_prev;
-                    a_prev = a_cur;
-                    a_cur = a_next;
-                    b_prev = b_cur;
-                    b_cur = b_next;
-                }
-                return b_cur / a_cur;
-            }
-            let e = exp(-2.0 * r);
-            let coth = (1.0 + e) / (1.0 - e);
-            return (coth - 1.0 / r) / r;
-        }
-        default: {
-            return 1.0 / 3.0;
-        }
-    }
-}
-
 // Packed index (colour offset included) of natural voxel (i, j, k).
 fn packed(i: u32, j: u32, k: u32) -> u32 {
     let c = (i + j + k) & 1u;
@@ -180,7 +127,7 @@ fn boundary_d(
     let q = packed(i, j, k);
     let s = sig[q];
     let r = max(gnorm, P.floor) / max(s * phi[q], P.floor);
-    dcoef[q] = P.theta * (limiter(r) / s) + P.one_minus_theta * dcoef[q];
+    dcoef[q] = P.theta * (limiter(r, P.larsen_n) / s) + P.one_minus_theta * dcoef[q];
 }
 
 // One colour pass (P.color) over the interior: FLD Eqs 34, 35, 33 (D), 32 (phi'), 36 (SOR,
@@ -236,7 +183,7 @@ fn sweep(
             let gnorm = sqrt(gx * gx + gy * gy + gz * gz);
             let sg = sig[own];
             let r = max(gnorm, P.floor) / max(sg * phi_p, P.floor);
-            d_p = P.theta * (limiter(r) / sg) + P.one_minus_theta * d_p;
+            d_p = P.theta * (limiter(r, P.larsen_n) / sg) + P.one_minus_theta * d_p;
             dcoef[own] = d_p;
         }
         let sum_phi = p0 + p1 + p2 + p3 + p4 + p5;

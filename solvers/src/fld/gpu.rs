@@ -84,7 +84,7 @@ pub(crate) struct GpuParams {
 /// `LIMITER` override and the layout of `Params`.
 pub(crate) const SPEC: KernelSpec = KernelSpec {
     label: "fld.wgsl",
-    source: include_str!("fld.wgsl"),
+    source: concat!(include_str!("limiter.wgsl"), include_str!("fld.wgsl")),
     bindings: &[
         ("P", Access::Uniform),
         ("phi", Access::ReadWrite),
@@ -124,7 +124,8 @@ pub struct GpuFld<'a> {
     fld: bool,
     boundary_groups: [u32; 2],
     sweep_groups: [u32; 3],
-    phi: wgpu::Buffer,
+    /// The packed fields φ, D, σ, absorption and source (as [`CpuFld::packed_fields`]).
+    fields: [wgpu::Buffer; 5],
     state: wgpu::Buffer,
     /// The `boundary_d`, `sweep` and `reduce` pipelines.
     pipelines: [wgpu::ComputePipeline; 3],
@@ -155,7 +156,17 @@ impl<'a> GpuFld<'a> {
         }
         medium.validate()?;
         config.validate()?;
-        let grid = medium.grid;
+        Self::check_limits(ctx, &medium.grid)?;
+        // Limits are checked above, before any host memory is spent. The CPU kernel's setup
+        // is the single source of the packed initial state.
+        let host = CpuFld::<f32>::new(medium, boundary, config)?;
+        let tolerance = host.tolerance();
+        Self::upload(ctx, &host, config, tolerance, t0)
+    }
+
+    /// Fails with a typed error unless a grid of this size fits the device's limits (buffer
+    /// sizes, workgroup counts, u32 indexing); returns the sweep's workgroup counts.
+    pub(super) fn check_limits(ctx: &GpuContext, grid: &Grid) -> Result<[u32; 3], SolverError> {
         let [nx, ny, nz] = grid.n;
         let h = nx.div_ceil(2);
         let plen = nz * ny * h;
@@ -185,10 +196,26 @@ impl<'a> GpuFld<'a> {
         for g in sweep_groups {
             ctx.check_workgroups("the FLD sweep", g)?;
         }
+        Ok(sweep_groups)
+    }
+
+    /// Uploads the packed state of `host` (built from `config`, limits already checked by
+    /// [`GpuFld::check_limits`]) and builds the pipelines; the GPU raises its `done` flag
+    /// below `tolerance` (0: never, as the multigrid smoother of every level runs).
+    pub(super) fn upload(
+        ctx: &'a GpuContext,
+        host: &CpuFld<f32>,
+        config: &FldConfig,
+        tolerance: f64,
+        t0: Instant,
+    ) -> Result<Self, SolverError> {
+        let grid = *host.grid();
+        let [nx, ny, nz] = grid.n;
+        let h = nx.div_ceil(2);
+        let plen = nz * ny * h;
+        let sweep_groups = Self::check_limits(ctx, &grid)?;
+        let field_bytes = 2 * plen as u64 * 4;
         let partials_per_color = sweep_groups.iter().product::<u32>();
-        // Limits are checked above, before any host memory is spent. The CPU kernel's setup
-        // is the single source of the packed initial state.
-        let host = CpuFld::<f32>::new(medium, boundary, config)?;
         let fld = !config.limiter.is_constant();
         let boundary_list: Vec<u32> = if fld {
             (0..grid.len())
@@ -236,7 +263,7 @@ impl<'a> GpuFld<'a> {
                 FluxLimiter::Larsen(n) => n as f32,
                 _ => 2.0,
             },
-            tolerance: host.tolerance() as f32,
+            tolerance: tolerance as f32,
             inv_residual_count: 1.0 / host.residual_count() as f32,
             _pad2: 0.0,
             _pad3: 0.0,
@@ -305,7 +332,13 @@ impl<'a> GpuFld<'a> {
             fld,
             boundary_groups,
             sweep_groups,
-            phi: buffers.phi,
+            fields: [
+                buffers.phi,
+                buffers.dcoef,
+                buffers.sig,
+                buffers.absorb,
+                buffers.src,
+            ],
             state: buffers.state,
             pipelines,
             binds,
@@ -313,6 +346,12 @@ impl<'a> GpuFld<'a> {
             residuals: Vec::new(),
             setup_seconds: t0.elapsed().as_secs_f64(),
         })
+    }
+
+    /// The packed fields φ, D, σ, absorption and source on the device (the multigrid levels
+    /// bind them to their transfer kernels).
+    pub(super) fn fields(&self) -> &[wgpu::Buffer; 5] {
+        &self.fields
     }
 
     /// Iterations recorded per submission before the state is read back.
@@ -419,7 +458,7 @@ impl<'a> GpuFld<'a> {
             return Ok(vec![0.0; g.len()]);
         }
         let plen = g.n[2] * g.n[1] * self.h;
-        let bytes = self.ctx.read_buffer(&self.phi, 2 * plen as u64 * 4)?;
+        let bytes = self.ctx.read_buffer(&self.fields[0], 2 * plen as u64 * 4)?;
         let packed: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
         let scale = self.j_ref;
         let mut phi = Vec::with_capacity(g.len());
@@ -437,7 +476,7 @@ impl<'a> GpuFld<'a> {
 }
 
 /// The `LIMITER` override constant of `fld.wgsl`.
-fn limiter_id(l: FluxLimiter) -> u32 {
+pub(super) fn limiter_id(l: FluxLimiter) -> u32 {
     match l {
         FluxLimiter::Cda => 0,
         FluxLimiter::Sum => 1,

@@ -22,7 +22,7 @@ pub struct FldMethod {
     /// The solver settings; `tolerance` and `max_iterations` are replaced by the
     /// [`Tolerance`] of each solve.
     pub config: FldConfig,
-    /// `Some`: solve by FAS multigrid ([`super::multigrid`], CPU only) instead of SOR.
+    /// `Some`: solve by FAS multigrid ([`super::multigrid`]) instead of SOR.
     pub multigrid: Option<MgConfig>,
     /// How σs is used under an anisotropic phase function (a spec suffix `:similarity`).
     pub anisotropy: AnisotropyScaling,
@@ -149,7 +149,7 @@ impl Method for FldMethod {
     }
 
     fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {
-        &[&super::gpu::SPEC]
+        &[&super::gpu::SPEC, &super::multigrid::gpu::SPEC]
     }
 
     fn bytes_per_step(&self, grid: &Grid, precision: Precision) -> usize {

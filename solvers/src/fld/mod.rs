@@ -10,8 +10,10 @@
 //! * [`Boundary`]: zero Dirichlet (the paper's) or Dirichlet values from a function.
 //! * [`cpu::CpuFld`]: the rayon kernel, generic over `f32`/`f64`.
 //! * [`gpu::GpuFld`]: the wgpu kernel (f32, `fld.wgsl`), same layout and arithmetic.
-//! * [`multigrid::CpuMultigrid`]: nonlinear FAS multigrid with Algorithm 1's sweep as smoother
-//!   (method names `cda:mg`, `fld:<limiter>:mg`; see [`multigrid`]).
+//! * [`multigrid::CpuMultigrid`], [`multigrid::GpuMultigrid`]: nonlinear FAS multigrid with
+//!   Algorithm 1's sweep as smoother, on the CPU and on the GPU (`multigrid.wgsl` for the
+//!   transfers; method names `cda:mg`, `fld:<limiter>:mg`; see [`multigrid`]).
+//! * `limiter.wgsl`: the limiters in WGSL, prepended to `fld.wgsl` and `multigrid.wgsl`.
 //!
 //! ## Decisions where the paper is silent (each is tested in `cpu.rs`)
 //! * **Boundary layer.** The outermost voxel layer holds the Dirichlet values and is never
@@ -456,7 +458,7 @@ pub fn solve(
 }
 
 /// How the FLD/CDA equation is solved: red-black SOR (FLD Algorithm 1, the reference) or
-/// FAS multigrid ([`multigrid`], CPU only).
+/// FAS multigrid ([`multigrid`], CPU and GPU).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum Solver {
     /// Red-black SOR, FLD Algorithm 1.
@@ -500,9 +502,13 @@ pub fn solve_with(
                     .widen_with(|t| t),
             )
         }
-        Backend::Gpu(_) => Err(SolverError::Unsupported(
-            "multigrid runs on the CPU only (GPU multigrid is not implemented)".into(),
-        )),
+        Backend::Gpu(ctx) => {
+            Ok(
+                multigrid::GpuMultigrid::new(ctx, &medium.cast(), &boundary.cast(), config, mg)?
+                    .solve_observed(observer)?
+                    .widen_with(|t| t),
+            )
+        }
     }
 }
 

@@ -270,7 +270,7 @@ fn layout_entry(binding: u32, access: Access) -> wgpu::BindGroupLayoutEntry {
 /// Records one timed compute pass (`record` fills it) into a new encoder, submits it, waits,
 /// adds the pass time to `timer`, and returns the first `read.1` bytes of `read.0` (empty
 /// without `read`).
-fn submit_pass(
+pub(crate) fn submit_pass(
     ctx: &GpuContext,
     timer: &mut PassTimer,
     label: &str,
