@@ -93,6 +93,14 @@
 //!   CDA multigrid 0.551 s vs SOR 1.113 s (2.0×), FLD-LP 3.59 s vs 10.22 s (2.8×). Smoothing
 //!   alone (36.6 and 82.3 work units at SOR's seconds per iteration) would be 0.147 and 1.69 s,
 //!   so even a free cycle overhead leaves CDA at 7.6× and FLD-LP at 6.0× here.
+//! * **Full multigrid start: tried and rejected (2026-12-06, a build not kept).** Nested
+//!   iteration (each level's own problem with f_l = R f_{l−1}, solved from the coarsest up, one
+//!   V(2,2) per level, as the first cycle) cut the first cycle's R̄/j̄ only from 2.7–2.8·10⁻²
+//!   to 1.7–1.8·10⁻² on the point source (τ = 4, albedo 0.5): cycles to 10⁻⁶ CDA 8 → 7 at n =
+//!   31 and 63, FLD-LP 11 → 12 and 15 → 15; Fig 4 cloud FLD-LP 22 → 20 and 49 → 45 (CDA
+//!   stalls either way), seconds within ±6 %. The interpolated coarse answer carries the fine
+//!   grid's discretisation residual (largest at the source), so the start is not what limits;
+//!   FLD-LP's rate per cycle (0.3–0.4 at n = 63) is.
 //! * **Known limitations (measured, not fixed).** Where vacuum (D = 1/(3σ_ε), a
 //!   near-perfect conductor) fills part of the grid, the rediscretised coarse CDA operator
 //!   does not approximate the fine one: CDA on the Fig 4 cloud (n = 17, 33) reduces the
