@@ -300,14 +300,17 @@ impl<T: Real> CpuFld<T> {
         self.unpack_f64(&self.src, 1.0 / dl2)
     }
 
-    /// Sets φ (`which` = 0), D (1) or the right-hand side j (2) from natural layout.
+    /// Sets φ (`which` = 0), D (1), the right-hand side j (2), the Knudsen σ (3) or the
+    /// absorption (1 − α)σΔl² (4) from natural layout.
     pub(super) fn mg_set(&mut self, which: usize, v: &[f64]) {
         let g = self.grid;
         let dl2 = g.dl * g.dl;
         let (f, scale) = match which {
             0 => (&mut self.phi, 1.0),
             1 => (&mut self.d, 1.0),
-            _ => (&mut self.src, dl2),
+            2 => (&mut self.src, dl2),
+            3 => (&mut self.sig, 1.0),
+            _ => (&mut self.absorb, 1.0),
         };
         let [nx, ny, _] = g.n;
         let h = self.h;

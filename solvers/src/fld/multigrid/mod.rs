@@ -11,9 +11,10 @@
 //!   and m + 1. With m odd the axis is coarsened vertex-wise (coarse node c = fine node 2c,
 //!   the coarse layer on the fine one, m → (m − 1)/2); with m even cell-wise (coarse voxel
 //!   c covers fine 2c − 1, 2c, m → m/2, the coarse layer half a fine voxel outside). The
-//!   coarse medium keeps ∫σt and ∫σs (full weighting ¼, ½, ¼ on vertex axes, the mean of
-//!   the two children on cell axes) and is rediscretised with the same floors (σ_ε of the
-//!   finest grid). **Changed (this session):** every axis used to be coarsened cell-wise
+//!   coarse medium keeps ∫σa (full weighting ¼, ½, ¼ on vertex axes, the mean of the two
+//!   children on cell axes); the σ of its diffusion coefficient is the harmonic mean of the
+//!   children's (floored) σ with the same weights ([`CoarseSigma`], next decision), and it is
+//!   rediscretised with the same floors (σ_ε of the finest grid). **Changed (2026-12-03):** every axis used to be coarsened cell-wise
 //!   with coarse voxel I covering fine 2I − 1, 2I; for odd m (every point-source grid) the
 //!   last coarse voxel then straddled the Dirichlet layer and the coarse boundary sat 2 fine
 //!   voxels from its centre instead of ½, a coarse operator that does not approximate the
@@ -98,20 +99,36 @@
 //!   V(2,2) per level, as the first cycle) cut the first cycle's R̄/j̄ only from 2.7–2.8·10⁻²
 //!   to 1.7–1.8·10⁻² on the point source (τ = 4, albedo 0.5): cycles to 10⁻⁶ CDA 8 → 7 at n =
 //!   31 and 63, FLD-LP 11 → 12 and 15 → 15; Fig 4 cloud FLD-LP 22 → 20 and 49 → 45 (CDA
-//!   stalls either way), seconds within ±6 %. The interpolated coarse answer carries the fine
+//!   stalled either way with the arithmetic coarse σ of then), seconds within ±6 %. The interpolated coarse answer carries the fine
 //!   grid's discretisation residual (largest at the source), so the start is not what limits;
 //!   FLD-LP's rate per cycle (0.3–0.4 at n = 63) is.
-//! * **Known limitations (measured, not fixed).** Where vacuum (D = 1/(3σ_ε), a
-//!   near-perfect conductor) fills part of the grid, the rediscretised coarse CDA operator
-//!   does not approximate the fine one: CDA on the Fig 4 cloud (n = 17, 33) reduces the
-//!   residual ×0.05–0.1 in the first cycle and then diverges (×2–6 per cycle); the stall
-//!   rule ends it `Stalled` (or `NonFinite`), never `Converged`. FLD-LP on the Fig 4 cloud
-//!   converges (14 and 21 cycles to 10⁻⁶ at n = 17, 33, rate ≈ 0.35–0.55 per cycle). Both
-//!   stall on 95 %-vacuum noise (as SOR does). CDA also stalls without any vacuum where σt
-//!   spans 10⁴ from voxel to voxel (white noise, 24 × 20 × 27, f32: R̄/j̄ 0.47 → 0.17 in
-//!   two cycles, then 0.17–0.26 until `Stalled` after 11; FLD-LP converges there in 21
-//!   cycles), the same coarse-operator failure. Operator-dependent (Galerkin-type) coarse
-//!   coefficients are the candidate fix, not tried.
+//! * **Coarse σ: harmonic, not arithmetic ([`CoarseSigma`]; changed 2026-12-06).** The fine
+//!   operator couples voxels through ½(D_p + D_q), an arithmetic mean of D = F/σ, so a vacuum
+//!   voxel (D = 1/(3σ_ε), a near-perfect conductor) makes its faces conduct. A coarse voxel
+//!   whose σ is the arithmetic mean of its children's (∫σt kept, the first version) loses
+//!   that: one vacuum child among medium children gives an ordinary D. With the arithmetic
+//!   σ, CDA on the Fig 4 cloud (n = 17, 33) cut the residual ×0.05–0.1 in the first cycle
+//!   and then diverged (×2–6 per cycle, ended `Stalled`), and so did CDA on white noise with
+//!   30 % or 95 % vacuum and with 10⁴ contrast and no vacuum. With the harmonic σ (the coarse
+//!   D of a constant limiter is then the mean of the fine D) CDA converges on all of them to
+//!   10⁻⁹ (`tests/fld_multigrid.rs`: cloud 24³ 21 cycles, 30 % vacuum 52, 95 % vacuum 11;
+//!   the arithmetic σ on the cloud is pinned to stall there), on the datasets of
+//!   `convergence_check` (18³, tolerance 10⁻⁴: nebula stalled at rel. error 0.81 → 6 cycles
+//!   and 1.8·10⁻⁸ from SOR's tight solve; emissive_cloud stalled at 0.52 → 8 cycles, 1.3·10⁻⁷;
+//!   plume 12 → 7 cycles; cubes unchanged; shell_core still stalls, at 0.89 instead of a
+//!   residual of 10¹⁷) and on the `multigrid_scaling` cloud (n = 31, 63, 127: 20, 33, 48
+//!   cycles to 10⁻⁶, where it stalled at every n). The homogeneous point source is unchanged
+//!   (same cycles, 6–10). FLD is little affected (its D in vacuum is flux-limited, ≈ φ/|∇φ|,
+//!   whatever σ): Fig 4 cloud 22 → 23 (n = 31) and 49 → 48 (n = 63) cycles, datasets ±1
+//!   cycle, FLD-LP on shell_core stalls either way.
+//! * **Known limitations (measured, not fixed).** CDA's rate on vacuum clouds is poor
+//!   (0.5–0.6 per cycle on the Fig 4 cloud at n = 63, cycles growing with n), so there SOR
+//!   is faster; shell_core stalls for CDA and every limiter. FLD-LP stalls on the Fig 4
+//!   cloud at n = 127 and 255 (R̄/j̄ 0.07 and 0.17), on white noise with 30 % and 95 %
+//!   vacuum (as SOR does on the latter), and its cycles grow with n on the point source
+//!   (11, 15, 18, 25 at n = 31…255). Operator-dependent (Galerkin-type) coarse
+//!   coefficients and a Newton-type treatment of the limiter's nonlinearity are the
+//!   candidate fixes, not tried.
 //! * **GPU ([`gpu`], issue 15 item 2).** The same cycle in f32 on the device: the smoother of
 //!   every level is `fld.wgsl`'s red-black sweep itself, the transfers (D from φ, residual,
 //!   restriction of φ and of the residual, the FAS right-hand side, prolongation) are
@@ -120,9 +137,12 @@
 //!   a 24 × 20 × 27 source block, for CDA and all five limiters, the GPU takes the same
 //!   number of cycles as the CPU-f32 multigrid (6–7; once 6 vs 7) and agrees with it to
 //!   0.09–1.3·10⁻⁶ relative L2 (max relative difference 0.8–10·10⁻⁶, the conformance bound
-//!   is 10⁻³), and with the GPU's SOR to 1.4·10⁻⁶–2.5·10⁻⁵ relative L2; where the CPU
-//!   stalls (Fig 4 cloud CDA, 95 % vacuum, the noise above for CDA) the GPU stalls after the
-//!   same number of cycles at the same R̄/j̄ (3 digits).
+//!   is 10⁻³), and with the GPU's SOR to 1.4·10⁻⁶–2.5·10⁻⁵ relative L2. With the arithmetic
+//!   coarse σ, where the CPU stalled (Fig 4 cloud CDA, 95 % vacuum, 10⁴-contrast noise for
+//!   CDA) the GPU stalled after the same number of cycles at the same R̄/j̄ (3 digits); with
+//!   the harmonic σ both converge there in the same number of cycles (7 and 14), and on the
+//!   Fig 4 cloud CDA both stop `Stalled` at f32's floor (R̄/j̄ 1.0 and 1.1·10⁻⁴ after 20 and
+//!   25 cycles, tolerance 10⁻⁵).
 //!
 pub mod gpu;
 
@@ -167,6 +187,22 @@ pub struct MgConfig {
     /// FLD-LP at albedo 1 (17³) stall at R̄/j̄ ≈ 2·10⁻³ where it otherwise converges in 19
     /// cycles to 1e-9.
     pub extrapolated_layer: bool,
+    /// How a coarse level's σ (the σ of D = F(R)/σ and of R) is formed from its parent's.
+    pub coarse_sigma: CoarseSigma,
+}
+
+/// The σ of a coarse level's diffusion coefficient (its absorption always keeps ∫σa).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CoarseSigma {
+    /// The harmonic mean of the children's σ (with the same weights as [`Axis::mean`]), so a
+    /// constant limiter's coarse D is the mean of the fine D: a vacuum child (D = 1/(3σ_ε),
+    /// a near-perfect conductor) keeps the coarse voxel conducting, as the fine faces'
+    /// arithmetic mean of D does. The default; measured in the module docs.
+    #[default]
+    Harmonic,
+    /// The arithmetic mean of σt (∫σt kept), the rediscretisation of the restricted medium
+    /// (the first version): CDA diverges on the Fig 4 cloud with it.
+    Arithmetic,
 }
 
 impl Default for MgConfig {
@@ -177,6 +213,7 @@ impl Default for MgConfig {
             post: 2,
             stall_cycles: 8,
             extrapolated_layer: false,
+            coarse_sigma: CoarseSigma::Harmonic,
         }
     }
 }
@@ -286,6 +323,25 @@ impl<T: Real> CpuMultigrid<T> {
             )?;
             let mut lv = Self::level(CpuFld::mg_level(&cm, &coarse_cfg)?);
             lv.cell_axes = axes(&g).map(|a| !a.vertex);
+            if mg.coarse_sigma == CoarseSigma::Harmonic {
+                if let Some(parent) = levels.last() {
+                    // D = F/σ averaged as the fine faces average it (arithmetically): σ by its
+                    // harmonic mean; the absorption σaΔl² keeps ∫σa (the coarse Δl² is 4×).
+                    let inv: Vec<f64> = parent.sig.iter().map(|s| 1.0 / s).collect();
+                    let sig: Vec<f64> = restrict_mean(&g, &cg, &inv)
+                        .iter()
+                        .map(|x| 1.0 / x)
+                        .collect();
+                    let absorb: Vec<f64> = restrict_mean(&g, &cg, &parent.absorb)
+                        .iter()
+                        .map(|x| 4.0 * x)
+                        .collect();
+                    lv.fld.mg_set(3, &sig);
+                    lv.fld.mg_set(4, &absorb);
+                    lv.sig = sig;
+                    lv.absorb = absorb;
+                }
+            }
             levels.push(lv);
             (g, st, ss) = (cg, cst, css);
         }
