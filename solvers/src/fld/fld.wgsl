@@ -114,20 +114,17 @@ fn boundary_d(
     let i = n % P.nx;
     let j = (n / P.nx) % P.ny;
     let k = n / (P.nx * P.ny);
-    let xl = select(i - 1u, 0u, i == 0u);
-    let xr = min(i + 1u, P.nx - 1u);
-    let yl = select(j - 1u, 0u, j == 0u);
-    let yr = min(j + 1u, P.ny - 1u);
-    let zl = select(k - 1u, 0u, k == 0u);
-    let zr = min(k + 1u, P.nz - 1u);
-    let gx = (phi[packed(xr, j, k)] - phi[packed(xl, j, k)]) * P.inv_2dl * (2.0 / f32(xr - xl));
-    let gy = (phi[packed(i, yr, k)] - phi[packed(i, yl, k)]) * P.inv_2dl * (2.0 / f32(yr - yl));
-    let gz = (phi[packed(i, j, zr)] - phi[packed(i, j, zl)]) * P.inv_2dl * (2.0 / f32(zr - zl));
-    let gnorm = sqrt(gx * gx + gy * gy + gz * gz);
+    let x = span(i, P.nx);
+    let y = span(j, P.ny);
+    let z = span(k, P.nz);
+    let g = vec3<f32>(
+        (phi[packed(x.y, j, k)] - phi[packed(x.x, j, k)]) * P.inv_2dl * (2.0 / f32(x.y - x.x)),
+        (phi[packed(i, y.y, k)] - phi[packed(i, y.x, k)]) * P.inv_2dl * (2.0 / f32(y.y - y.x)),
+        (phi[packed(i, j, z.y)] - phi[packed(i, j, z.x)]) * P.inv_2dl * (2.0 / f32(z.y - z.x)),
+    );
     let q = packed(i, j, k);
-    let s = sig[q];
-    let r = max(gnorm, P.floor) / max(s * phi[q], P.floor);
-    dcoef[q] = P.theta * (limiter(r, P.larsen_n) / s) + P.one_minus_theta * dcoef[q];
+    let d = diffusion(g, sig[q], phi[q], P.floor, P.larsen_n);
+    dcoef[q] = P.theta * d + P.one_minus_theta * dcoef[q];
 }
 
 // One colour pass (P.color) over the interior: FLD Eqs 34, 35, 33 (D), 32 (phi'), 36 (SOR,
@@ -177,13 +174,9 @@ fn sweep(
         let phi_p = phi[own];
         var d_p = dcoef[own];
         if (LIMITER != 0u) {
-            let gx = (p1 - p0) * P.inv_2dl;
-            let gy = (p3 - p2) * P.inv_2dl;
-            let gz = (p5 - p4) * P.inv_2dl;
-            let gnorm = sqrt(gx * gx + gy * gy + gz * gz);
-            let sg = sig[own];
-            let r = max(gnorm, P.floor) / max(sg * phi_p, P.floor);
-            d_p = P.theta * (limiter(r, P.larsen_n) / sg) + P.one_minus_theta * d_p;
+            let g = vec3<f32>(p1 - p0, p3 - p2, p5 - p4) * P.inv_2dl;
+            let d = diffusion(g, sig[own], phi_p, P.floor, P.larsen_n);
+            d_p = P.theta * d + P.one_minus_theta * d_p;
             dcoef[own] = d_p;
         }
         let sum_phi = p0 + p1 + p2 + p3 + p4 + p5;

@@ -1,7 +1,8 @@
 // The flux limiters F(R) of FLD Table 2 in f32, shared by every FLD kernel: `fld.wgsl` (the
 // red-black sweep) and `multigrid/multigrid.wgsl` (the multigrid transfers) each name this file
 // in a `// requires:` line and their host specs prepend it (`concat!`), so the GPU has one
-// definition of each limiter. The CPU twin is `limiter.rs`.
+// definition of each limiter and of the Knudsen number around it. The CPU twin is `limiter.rs`
+// (and the D updates of `cpu.rs` and `multigrid/mod.rs`).
 
 // Which flux limiter (FLD Table 2): 0 CDA, 1 sum, 2 max, 3 Kershaw, 4 Larsen-n, 5 LP.
 override LIMITER: u32 = 5u;
@@ -56,4 +57,18 @@ fn limiter(r_in: f32, larsen_n: f32) -> f32 {
             return 1.0 / 3.0;
         }
     }
+}
+
+// The two neighbours (x: lower, y: upper) of index i along an axis of n voxels for the
+// gradient of FLD Eq 34: centred inside, one-sided on the Dirichlet layer; a difference over
+// them is scaled by 2 / (y - x).
+fn span(i: u32, n: u32) -> vec2<u32> {
+    return vec2<u32>(select(i - 1u, 0u, i == 0u), min(i + 1u, n - 1u));
+}
+
+// D = F(R)/sigma with R = max(|g|, floor) / max(sigma phi, floor) (FLD Eqs 33-35), g the
+// gradient of phi at the voxel.
+fn diffusion(g: vec3<f32>, s: f32, phi_p: f32, floor: f32, larsen_n: f32) -> f32 {
+    let r = max(sqrt(g.x * g.x + g.y * g.y + g.z * g.z), floor) / max(s * phi_p, floor);
+    return limiter(r, larsen_n) / s;
 }

@@ -74,6 +74,11 @@ fn cpk(i: u32, j: u32, k: u32) -> u32 {
     return ((i + j + k) & 1u) * P.cplen + (k * P.cny + j) * P.ch + i / 2u;
 }
 
+// The voxel counts of this level.
+fn dims() -> vec3<u32> {
+    return vec3<u32>(P.nx, P.ny, P.nz);
+}
+
 fn is_layer(i: u32, j: u32, k: u32, n: vec3<u32>) -> bool {
     return i == 0u || j == 0u || k == 0u || i + 1u == n.x || j + 1u == n.y || k + 1u == n.z;
 }
@@ -109,37 +114,34 @@ fn apply_dl2(i: u32, j: u32, k: u32) -> f32 {
 // inside, one-sided on the Dirichlet layer, as `fresh_d` of `multigrid/mod.rs`.
 @compute @workgroup_size(8, 8, 4)
 fn fresh_d(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (any(gid >= dims())) {
+        return;
+    }
     let i = gid.x;
     let j = gid.y;
     let k = gid.z;
-    if (i >= P.nx || j >= P.ny || k >= P.nz) {
-        return;
-    }
-    let xl = select(i - 1u, 0u, i == 0u);
-    let xr = min(i + 1u, P.nx - 1u);
-    let yl = select(j - 1u, 0u, j == 0u);
-    let yr = min(j + 1u, P.ny - 1u);
-    let zl = select(k - 1u, 0u, k == 0u);
-    let zr = min(k + 1u, P.nz - 1u);
-    let gx = (phi[pk(xr, j, k)] - phi[pk(xl, j, k)]) * P.inv_2dl * (2.0 / f32(xr - xl));
-    let gy = (phi[pk(i, yr, k)] - phi[pk(i, yl, k)]) * P.inv_2dl * (2.0 / f32(yr - yl));
-    let gz = (phi[pk(i, j, zr)] - phi[pk(i, j, zl)]) * P.inv_2dl * (2.0 / f32(zr - zl));
+    let x = span(i, P.nx);
+    let y = span(j, P.ny);
+    let z = span(k, P.nz);
+    let g = vec3<f32>(
+        (phi[pk(x.y, j, k)] - phi[pk(x.x, j, k)]) * P.inv_2dl * (2.0 / f32(x.y - x.x)),
+        (phi[pk(i, y.y, k)] - phi[pk(i, y.x, k)]) * P.inv_2dl * (2.0 / f32(y.y - y.x)),
+        (phi[pk(i, j, z.y)] - phi[pk(i, j, z.x)]) * P.inv_2dl * (2.0 / f32(z.y - z.x)),
+    );
     let q = pk(i, j, k);
-    let s = sig[q];
-    let r = max(sqrt(gx * gx + gy * gy + gz * gz), P.floor) / max(s * phi[q], P.floor);
-    tmp[q] = limiter(r, P.larsen_n) / s;
+    tmp[q] = diffusion(g, sig[q], phi[q], P.floor, P.larsen_n);
 }
 
 // res = j - L(phi) (normalised units) inside, 0 on the Dirichlet layer; j = src / dl^2.
 @compute @workgroup_size(8, 8, 4)
 fn residual(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let n = dims();
+    if (any(gid >= n)) {
+        return;
+    }
     let i = gid.x;
     let j = gid.y;
     let k = gid.z;
-    let n = vec3<u32>(P.nx, P.ny, P.nz);
-    if (i >= n.x || j >= n.y || k >= n.z) {
-        return;
-    }
     let q = pk(i, j, k);
     if (is_layer(i, j, k, n)) {
         res[q] = 0.0;
@@ -153,13 +155,13 @@ fn residual(@builtin(global_invocation_id) gid: vec3<u32>) {
 // for FLD, the smoother's D set to the D just computed.
 @compute @workgroup_size(8, 8, 4)
 fn coarse_rhs(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let n = dims();
+    if (any(gid >= n)) {
+        return;
+    }
     let i = gid.x;
     let j = gid.y;
     let k = gid.z;
-    let n = vec3<u32>(P.nx, P.ny, P.nz);
-    if (i >= n.x || j >= n.y || k >= n.z) {
-        return;
-    }
     let q = pk(i, j, k);
     if (P.fld != 0u) {
         dcoef[q] = tmp[q];
@@ -174,7 +176,7 @@ fn coarse_rhs(@builtin(global_invocation_id) gid: vec3<u32>) {
 // The smoother's D set to tmp (FLD, after a prolongation).
 @compute @workgroup_size(8, 8, 4)
 fn take_d(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= P.nx || gid.y >= P.ny || gid.z >= P.nz) {
+    if (any(gid >= dims())) {
         return;
     }
     let q = pk(gid.x, gid.y, gid.z);
@@ -217,13 +219,13 @@ fn layer_index(c: u32, nc: u32, n: u32, vertex: u32) -> u32 {
 // layer copies the nearest fine voxel) and cres = R(res) / 8 (full weighting; 0 on the layer).
 @compute @workgroup_size(8, 8, 4)
 fn restrict_down(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let nc = vec3<u32>(P.cnx, P.cny, P.cnz);
+    if (any(gid >= nc)) {
+        return;
+    }
     let ic = gid.x;
     let jc = gid.y;
     let kc = gid.z;
-    let nc = vec3<u32>(P.cnx, P.cny, P.cnz);
-    if (ic >= nc.x || jc >= nc.y || kc >= nc.z) {
-        return;
-    }
     let qc = cpk(ic, jc, kc);
     if (is_layer(ic, jc, kc, nc)) {
         let v = phi[pk(
@@ -297,13 +299,13 @@ fn prolong_w(vertex: u32, i: u32, t: u32, nc: u32) -> vec2<f32> {
 // projected onto phi >= 0 as the smoother's update is (NaN passes through).
 @compute @workgroup_size(8, 8, 4)
 fn prolong(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let n = dims();
+    if (any(gid >= n) || is_layer(gid.x, gid.y, gid.z, n)) {
+        return;
+    }
     let i = gid.x;
     let j = gid.y;
     let k = gid.z;
-    let n = vec3<u32>(P.nx, P.ny, P.nz);
-    if (i >= n.x || j >= n.y || k >= n.z || is_layer(i, j, k, n)) {
-        return;
-    }
     var s = 0.0;
     for (var tk = 0u; tk < 2u; tk = tk + 1u) {
         let wk = prolong_w(P.vertex_z, k, tk, P.cnz);
@@ -338,7 +340,7 @@ fn norm(
     let j = gid.y;
     let k = gid.z;
     var v = vec3<f32>(0.0, 0.0, 0.0);
-    if (i < P.nx && j < P.ny && k < P.nz) {
+    if (all(gid < dims())) {
         let q = pk(i, j, k);
         let counted = i >= P.lo && i <= P.hi_x && j >= P.lo && j <= P.hi_y && k >= P.lo && k <= P.hi_z;
         let r = res[q];
