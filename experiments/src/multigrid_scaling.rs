@@ -53,8 +53,9 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_parser = list_item::<FluxLimiter>, default_value = "cda,lp")]
     pub limiters: Vec<FluxLimiter>,
     /// Stop at R̄/j̄ below this. GPU runs are f32: on the cloud neither SOR nor multigrid
-    /// gets much below 10⁻⁵ there (SOR stops at its cap, multigrid stalls; measured with
-    /// `--quick --backend gpu` on lavapipe), so pass ≥ 1e-5 with `--backend gpu`.
+    /// reliably reaches 10⁻⁶ (`--quick --backend gpu` on lavapipe: SOR stopped at its cap at
+    /// 1.5·10⁻⁶ and 8.7·10⁻⁶ for CDA, 2.6·10⁻⁶ and 1.7·10⁻⁵ for FLD-LP at n = 15, 31; FLD-LP
+    /// multigrid stalled at 1.4·10⁻⁶ and 7.2·10⁻⁶), so pass ≥ 1e-5 with `--backend gpu`.
     #[arg(long, default_value_t = 1e-6)]
     pub tolerance: f64,
     /// Albedo of the point-source medium.

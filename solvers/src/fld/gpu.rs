@@ -161,7 +161,13 @@ impl<'a> GpuFld<'a> {
         // is the single source of the packed initial state.
         let host = CpuFld::<f32>::new(medium, boundary, config)?;
         let tolerance = host.tolerance();
-        Self::upload(ctx, &host, config, tolerance, t0)
+        let kernel = Self::kernel(ctx, config.limiter)?;
+        Self::upload(ctx, &kernel, &host, config, tolerance, t0)
+    }
+
+    /// `fld.wgsl` compiled for `limiter` (one per solve; the multigrid levels share one).
+    pub(super) fn kernel(ctx: &GpuContext, limiter: FluxLimiter) -> Result<Kernel, GpuError> {
+        Kernel::new(ctx, &SPEC, &[("LIMITER", f64::from(limiter_id(limiter)))])
     }
 
     /// Fails with a typed error unless a grid of this size fits the device's limits (buffer
@@ -200,10 +206,12 @@ impl<'a> GpuFld<'a> {
     }
 
     /// Uploads the packed state of `host` (built from `config`, limits already checked by
-    /// [`GpuFld::check_limits`]) and builds the pipelines; the GPU raises its `done` flag
-    /// below `tolerance` (0: never, as the multigrid smoother of every level runs).
+    /// [`GpuFld::check_limits`]) and binds it to `kernel` ([`GpuFld::kernel`]); the GPU raises
+    /// its `done` flag below `tolerance` (0: never, as the multigrid smoother of every level
+    /// runs).
     pub(super) fn upload(
         ctx: &'a GpuContext,
+        kernel: &Kernel,
         host: &CpuFld<f32>,
         config: &FldConfig,
         tolerance: f64,
@@ -259,10 +267,7 @@ impl<'a> GpuFld<'a> {
             floor: p.floor,
             theta: p.theta,
             one_minus_theta: p.one_minus_theta,
-            larsen_n: match config.limiter {
-                FluxLimiter::Larsen(n) => n as f32,
-                _ => 2.0,
-            },
+            larsen_n: larsen_n(config.limiter),
             tolerance: tolerance as f32,
             inv_residual_count: 1.0 / host.residual_count() as f32,
             _pad2: 0.0,
@@ -295,8 +300,6 @@ impl<'a> GpuFld<'a> {
                 }
             },
         )?;
-        let limiter_id = f64::from(limiter_id(config.limiter));
-        let kernel = Kernel::new(ctx, &SPEC, &[("LIMITER", limiter_id)])?;
         let pipelines = [
             kernel.pipeline("boundary_d")?,
             kernel.pipeline("sweep")?,
@@ -472,6 +475,14 @@ impl<'a> GpuFld<'a> {
             }
         }
         Ok(phi)
+    }
+}
+
+/// The `larsen_n` uniform of `fld.wgsl` and `multigrid.wgsl` (unused but for Larsen).
+pub(super) fn larsen_n(l: FluxLimiter) -> f32 {
+    match l {
+        FluxLimiter::Larsen(n) => n as f32,
+        _ => 2.0,
     }
 }
 
