@@ -160,6 +160,32 @@
 //!   (FLD-LP ≥ 0.4, CDA ≥ 0.6 of triad) are met for CDA f64 only: FLD-LP does ~60
 //!   vector instructions per voxel (Padé + exp + 4 divisions + sqrt besides the stencil) on
 //!   two vCPUs, which at 0.4 of a 33 GB/s triad would have to retire in ~40 ms.
+//! * **Row length, boundary batch, split D loop (issue 15 item 4; 2026-12-06,
+//!   `results/bench/diffusion_cpu.csv`).** Three changes to `cpu.rs`, each bit-identical (hash
+//!   of φ, D and the residual history after 30 iterations for every limiter including
+//!   Larsen-3, paper and Marshak faces, f32 and f64, 40×33×37 random medium with 20 % vacuum;
+//!   an ad-hoc example, not kept):
+//!   (1) packed rows are ⌈nx/2⌉ made odd (`packed_row_len`): at 256³ a row of 128 values put
+//!   the z-neighbour rows a power of two apart, into the same cache sets; 256³ then ran slower
+//!   than 258³ (f32 CDA 32.7 vs 21.7 ms), and with the odd row CDA f32 takes 21.8 ms;
+//!   (2) the boundary layer's D is gathered per slab and computed in one vectorised loop
+//!   (`perf`: 17.9 → 12.6 % of the FLD-LP f32 samples at 256³; what is left waits on the x
+//!   faces' scattered loads); (3) the row loop computes D for the whole run before the φ update
+//!   (fewer live vector registers; −3.8 % alone, p = 0.03).
+//!   One red-black iteration at 256³ (2-vCPU AMD EPYC 7002-series, family 23 model 49, 16 MiB
+//!   L3 reported; `cargo bench -p benches --bench diffusion` before and after, same machine), ms (÷ the triad of the
+//!   same run): CDA f32 30.3 (0.43) → 20.0 (0.63), CDA f64 38.7 (0.71) → 28.3 (0.85),
+//!   FLD-LP f32 95.4 (0.16) → 66.8 (0.25), FLD-LP f64 148.6 (0.21) → 113.1 (0.27); triad
+//!   35–40 GB/s in those runs. Issue 15's CDA target (≥ 0.6 of triad) is met in both
+//!   precisions; FLD-LP's (≥ 0.4) is not, and cannot be on this machine with FLD's arithmetic:
+//!   the same sweep with the sum limiter (one division instead of LP's Padé form, closed form
+//!   and exp) takes 44.0 ms (0.34 of a 39.9 GB/s triad) and with the max limiter 46.1 ms
+//!   (0.33), so the Knudsen number, D = F/σ and the θ-blend alone (a square root and two
+//!   divisions per voxel on top of CDA's one) leave FLD below 0.4, and LP's own evaluation
+//!   adds 23 ms. Tried and dropped on the way (same bench): fixed 8-voxel blocks (LLVM unrolled
+//!   them into scalar code: CDA f32 205 ms), a row tail padded through a second, non-inlined
+//!   call (its per-call alias checks cost more than the tail: CDA f32 45 ms), and writing each
+//!   row to padded buffers (no gain once (1) was found).
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.

@@ -244,7 +244,7 @@ impl<'a> GpuMultigrid<'a> {
         for lv in &host.levels {
             let smoother = GpuFld::upload(ctx, &smoother_kernel, &lv.fld, cfg, 0.0, t0)?;
             let plen = 2 * lv.grid.n[2] * lv.grid.n[1] * lv.grid.n[0].div_ceil(2);
-            let d0 = lv.fld.packed_fields()[1];
+            let [_, d0, ..] = lv.fld.packed_fields();
             let tmp: Vec<f32> = [&d0[0][..], &d0[1][..]].concat();
             let bufs = ctx.allocating(
                 &format!("multigrid scratch of a {:?} level", lv.grid.n),
