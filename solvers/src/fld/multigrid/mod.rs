@@ -94,6 +94,15 @@
 //!   CDA multigrid 0.551 s vs SOR 1.113 s (2.0×), FLD-LP 3.59 s vs 10.22 s (2.8×). Smoothing
 //!   alone (36.6 and 82.3 work units at SOR's seconds per iteration) would be 0.147 and 1.69 s,
 //!   so even a free cycle overhead leaves CDA at 7.6× and FLD-LP at 6.0× here.
+//! * **After the sweep's odd row length and boundary batch (2026-12-06, `fld` module docs;
+//!   same 2-vCPU AMD EPYC, one run, `point_source --n 127 --boundary zero --tolerance 1e-6
+//!   --solver sor,multigrid --limiter cda,lp --albedo 0.5,0.99`).** SOR vs multigrid seconds:
+//!   CDA α = 0.5 1.22 vs 0.50 (2.4×), α = 0.99 1.13 vs 0.51 (2.2×); FLD-LP α = 0.5 8.81 vs
+//!   3.31 (2.7×), α = 0.99 17.97 vs 3.19 (5.6×); cycles, work units and φ unchanged (8 and 18
+//!   cycles; rel. L2 vs SOR 0.9–3.6·10⁻⁶). `perf` of the CDA solve puts 13–15 % of the samples
+//!   in the kernel's page clearing, `memset` and page faults: every cycle allocates fresh
+//!   fine-level vectors (φ unpacked, D, L(φ), the residual), 16 MB each at 127³. Reusing them
+//!   is the next cut of the cycle overhead (not done).
 //! * **Full multigrid start: tried and rejected (2026-12-06, a build not kept).** Nested
 //!   iteration (each level's own problem with f_l = R f_{l−1}, solved from the coarsest up, one
 //!   V(2,2) per level, as the first cycle) cut the first cycle's R̄/j̄ only from 2.7–2.8·10⁻²
