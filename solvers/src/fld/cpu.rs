@@ -305,6 +305,12 @@ impl<T: Real> CpuFld<T> {
         self.unpack_f64(&self.phi, 1.0)
     }
 
+    /// [`CpuFld::mg_phi`] into `out` (resized to the grid; every value is overwritten).
+    pub(super) fn mg_phi_into(&self, out: &mut Vec<f64>) {
+        out.resize(self.grid.len(), 0.0);
+        self.unpack_into(&self.phi, out, |x| x.f());
+    }
+
     /// The right-hand side j (normalised, natural layout) of FLD Eq 32.
     pub(super) fn mg_rhs(&self) -> Vec<f64> {
         let dl2 = self.grid.dl * self.grid.dl;
@@ -430,10 +436,18 @@ impl<T: Real> CpuFld<T> {
         zero: U,
         map: impl Fn(T) -> U + Sync,
     ) -> Vec<U> {
+        let mut out = vec![zero; self.grid.len()];
+        self.unpack_into(f, &mut out, map);
+        out
+    }
+
+    /// A packed field into `out` in natural layout (x fastest, `out` as long as the grid),
+    /// each value mapped by `map`; parallel over z-slabs (every output value is written once,
+    /// so the order does not matter).
+    fn unpack_into<U: Send>(&self, f: &[Vec<T>; 2], out: &mut [U], map: impl Fn(T) -> U + Sync) {
         let g = &self.grid;
         let [nx, ny, _] = g.n;
         let h = self.h;
-        let mut out = vec![zero; g.len()];
         out.par_chunks_mut(nx * ny)
             .enumerate()
             .for_each(|(k, slab)| {
@@ -444,7 +458,6 @@ impl<T: Real> CpuFld<T> {
                     }
                 }
             });
-        out
     }
 
     /// D on the boundary layer (FLD only): F(R)/σ with ∇φ by one-sided differences where a

@@ -99,10 +99,16 @@
 //!   --solver sor,multigrid --limiter cda,lp --albedo 0.5,0.99`).** SOR vs multigrid seconds:
 //!   CDA α = 0.5 1.22 vs 0.50 (2.4×), α = 0.99 1.13 vs 0.51 (2.2×); FLD-LP α = 0.5 8.81 vs
 //!   3.31 (2.7×), α = 0.99 17.97 vs 3.19 (5.6×); cycles, work units and φ unchanged (8 and 18
-//!   cycles; rel. L2 vs SOR 0.9–3.6·10⁻⁶). `perf` of the CDA solve puts 13–15 % of the samples
-//!   in the kernel's page clearing, `memset` and page faults: every cycle allocates fresh
-//!   fine-level vectors (φ unpacked, D, L(φ), the residual), 16 MB each at 127³. Reusing them
-//!   is the next cut of the cycle overhead (not done).
+//!   cycles; rel. L2 vs SOR 0.9–3.6·10⁻⁶). `perf` of the CDA solve then put 13–15 % of the
+//!   samples in the kernel's page clearing, `memset` and page faults: every cycle allocated
+//!   fresh fine-level vectors (φ unpacked, D, L(φ), the residual), 16 MB each at 127³. They
+//!   now come from a per-level pool (`Level::pool`; `apply_into`, `fresh_d_into` and
+//!   `CpuFld::mg_phi_into` overwrite every value) and the final φ is unpacked alone instead of
+//!   with D, σ and the absorption. φ, the residual histories and `profiles.csv` are
+//!   byte-identical; the same command, one run: CDA multigrid 0.434 s (α = 0.5) and 0.449 s
+//!   (0.99) against SOR 1.27 and 1.20 s (2.9×, 2.7×), FLD-LP 2.89 and 2.95 s against 8.67
+//!   and 17.70 s (3.0×, 6.0×). `memset` is gone from the profile; page clearing is down to
+//!   8 % of the samples, most of it the setup's first touch of its fields.
 //! * **Full multigrid start: tried and rejected (2026-12-06, a build not kept).** Nested
 //!   iteration (each level's own problem with f_l = R f_{l−1}, solved from the coarsest up, one
 //!   V(2,2) per level, as the first cycle) cut the first cycle's R̄/j̄ only from 2.7–2.8·10⁻²
@@ -163,7 +169,6 @@ use crate::gpu::Timer;
 use crate::method::Stop;
 use crate::{Grid, Medium, Real, SolverError};
 use rayon::prelude::*;
-use std::borrow::Cow;
 use std::time::Instant;
 
 /// V- or F-cycle.
@@ -244,6 +249,10 @@ struct Level<T> {
     /// Per axis: this level was coarsened cell-wise from its parent (its layer lies half a
     /// parent voxel outside the parent's layer; see [`Axis`]).
     cell_axes: [bool; 3],
+    /// Spare vectors of this level's length, reused from cycle to cycle (their values are
+    /// stale: every user overwrites all of them). *Why*: allocating them afresh cost 13–15 %
+    /// of a 127³ CDA solve in page clearing and `memset` (module docs).
+    pool: Vec<Vec<f64>>,
 }
 
 /// The FAS multigrid solve of one medium (CPU, `f32` or `f64`).
@@ -386,6 +395,7 @@ impl<T: Real> CpuMultigrid<T> {
             absorb,
             base: Vec::new(),
             d_fixed: None,
+            pool: Vec::new(),
             cell_axes: [false; 3],
         }
     }
@@ -405,12 +415,36 @@ impl<T: Real> CpuMultigrid<T> {
         &self.residuals
     }
 
-    /// D of level `l` at φ: the fixed D of a constant limiter (borrowed), else recomputed.
-    fn fresh_d(&self, l: usize, phi: &[f64]) -> Cow<'_, [f64]> {
+    /// A spare vector of level `l`'s length (stale values) from its pool.
+    fn take(&mut self, l: usize) -> Vec<f64> {
+        let lv = &mut self.levels[l];
+        let mut v = lv.pool.pop().unwrap_or_default();
+        v.resize(lv.grid.len(), 0.0);
+        v
+    }
+
+    /// Returns `v` to level `l`'s pool.
+    fn give(&mut self, l: usize, v: Vec<f64>) {
+        self.levels[l].pool.push(v);
+    }
+
+    /// D of level `l` at φ in a pooled vector, or `None` for a constant limiter (whose D is
+    /// the level's `d_fixed`).
+    fn fresh_d(&mut self, l: usize, phi: &[f64]) -> Option<Vec<f64>> {
+        if self.levels[l].d_fixed.is_some() {
+            return None;
+        }
+        let mut d = self.take(l);
         let lv = &self.levels[l];
-        match &lv.d_fixed {
-            Some(d) => Cow::Borrowed(d),
-            None => Cow::Owned(fresh_d(&lv.grid, phi, &lv.sig, &self.config, self.floor)),
+        fresh_d_into(&lv.grid, phi, &lv.sig, &self.config, self.floor, &mut d);
+        Some(d)
+    }
+
+    /// The D to use on level `l`: `fresh` if recomputed, else the fixed D.
+    fn d_of<'s>(&'s self, l: usize, fresh: &'s Option<Vec<f64>>) -> &'s [f64] {
+        match (fresh, &self.levels[l].d_fixed) {
+            (Some(d), _) | (None, Some(d)) => d,
+            (None, None) => &[],
         }
     }
 
@@ -426,14 +460,15 @@ impl<T: Real> CpuMultigrid<T> {
         r
     }
 
-    /// Residual f − L(φ) with D recomputed from φ, in place over L(φ) (which [`apply`]
-    /// leaves 0 on the Dirichlet layer), parallel over z-slabs.
-    fn residual(&self, l: usize, phi: &[f64], d: &[f64], f: &[f64]) -> Vec<f64> {
+    /// Residual f − L(φ) with D recomputed from φ, in place over L(φ) (which [`apply_into`]
+    /// leaves 0 on the Dirichlet layer), parallel over z-slabs, in a pooled vector.
+    fn residual(&mut self, l: usize, phi: &[f64], d: &Option<Vec<f64>>) -> Vec<f64> {
+        let mut r = self.take(l);
         let lv = &self.levels[l];
         let [nx, ny, nz] = lv.grid.n;
-        let mut r = apply(&lv.grid, phi, d, &lv.absorb);
+        apply_into(&lv.grid, phi, self.d_of(l, d), &lv.absorb, &mut r);
         r.par_chunks_mut(nx * ny)
-            .zip(f.par_chunks(nx * ny))
+            .zip(lv.rhs.par_chunks(nx * ny))
             .enumerate()
             .filter(|(k, _)| *k > 0 && k + 1 < nz)
             .for_each(|(_, (slab, fs))| {
@@ -444,6 +479,13 @@ impl<T: Real> CpuMultigrid<T> {
                 }
             });
         r
+    }
+
+    /// Returns the optional D of [`CpuMultigrid::fresh_d`] to level `l`'s pool.
+    fn give_d(&mut self, l: usize, d: Option<Vec<f64>>) {
+        if let Some(d) = d {
+            self.give(l, d);
+        }
     }
 
     fn cycle_at(&mut self, l: usize, kind: Cycle) {
@@ -461,21 +503,27 @@ impl<T: Real> CpuMultigrid<T> {
         for _ in 0..self.mg.pre {
             self.sweep(l);
         }
-        let phi = self.levels[l].fld.mg_phi();
-        let r = {
-            let d = self.fresh_d(l, &phi);
-            self.residual(l, &phi, &d, &self.levels[l].rhs)
-        };
+        let mut phi = self.take(l);
+        self.levels[l].fld.mg_phi_into(&mut phi);
+        let d = self.fresh_d(l, &phi);
+        let r = self.residual(l, &phi, &d);
+        self.give_d(l, d);
         let (fg, cg) = (self.levels[l].grid, self.levels[l + 1].grid);
         let phi_c0 = restrict_mean(&fg, &cg, &phi);
         // `None` for a constant limiter: the coarse D is fixed and already in place.
-        let (d_c, lc) = {
-            let d = self.fresh_d(l + 1, &phi_c0);
-            let lc = apply(&cg, &phi_c0, &d, &self.levels[l + 1].absorb);
-            (matches!(d, Cow::Owned(_)).then(|| d.into_owned()), lc)
-        };
+        let d_c = self.fresh_d(l + 1, &phi_c0);
+        let mut lc = self.take(l + 1);
+        apply_into(
+            &cg,
+            &phi_c0,
+            self.d_of(l + 1, &d_c),
+            &self.levels[l + 1].absorb,
+            &mut lc,
+        );
         let rc = restrict_fw(&fg, &cg, &r);
+        self.give(l, r);
         let fc: Vec<f64> = rc.par_iter().zip(&lc).map(|(a, b)| a + b).collect();
+        self.give(l + 1, lc);
         {
             let c = &mut self.levels[l + 1];
             c.fld.mg_set(0, &phi_c0);
@@ -486,23 +534,22 @@ impl<T: Real> CpuMultigrid<T> {
             c.rhs = fc;
             c.base = phi_c0.clone();
         }
+        self.give_d(l + 1, d_c);
         self.cycle_at(l + 1, kind);
         if kind == Cycle::F {
             self.cycle_at(l + 1, Cycle::V);
         }
         let phi_c = self.levels[l + 1].fld.mg_phi();
         let e: Vec<f64> = phi_c.par_iter().zip(&phi_c0).map(|(a, b)| a - b).collect();
-        let mut phi = phi;
         prolong_add(&fg, &cg, &e, &mut phi);
-        let d = match self.fresh_d(l, &phi) {
-            Cow::Owned(d) => Some(d),
-            Cow::Borrowed(_) => None,
-        };
+        let d = self.fresh_d(l, &phi);
         let fl = &mut self.levels[l].fld;
         fl.mg_set(0, &phi);
         if let Some(d) = &d {
             fl.mg_set(1, d);
         }
+        self.give(l, phi);
+        self.give_d(l, d);
         for _ in 0..self.mg.post {
             self.sweep(l);
         }
@@ -522,9 +569,11 @@ impl<T: Real> CpuMultigrid<T> {
             return (0.0, Vec::new());
         }
         self.cycle_at(0, self.mg.cycle);
-        let phi = self.levels[0].fld.mg_phi();
+        let mut phi = self.take(0);
+        self.levels[0].fld.mg_phi_into(&mut phi);
         let d = self.fresh_d(0, &phi);
-        let r = self.residual(0, &phi, &d, &self.levels[0].rhs);
+        let r = self.residual(0, &phi, &d);
+        self.give_d(0, d);
         let w = ResidualWindow::new(&self.levels[0].grid, self.config.residual_margin);
         let [nx, ny, _] = self.levels[0].grid.n;
         // Per-slab partial sums added in slab order: the same sum for any thread count.
@@ -543,6 +592,7 @@ impl<T: Real> CpuMultigrid<T> {
                 s
             })
             .collect();
+        self.give(0, r);
         let sumsq: f64 = partial.iter().sum();
         let res = w.rms(sumsq);
         self.cycles += 1;
@@ -580,6 +630,9 @@ impl<T: Real> CpuMultigrid<T> {
                     let (r, phi) = self.cycle_phi();
                     residual.set(r);
                     let e = estimate.update(&phi);
+                    if !phi.is_empty() {
+                        self.give(0, phi);
+                    }
                     (self.cycles, r.max(e))
                 },
                 |k, _| observer(k, residual.get()),
@@ -589,10 +642,7 @@ impl<T: Real> CpuMultigrid<T> {
         let fine = &self.levels[0];
         let grid = fine.grid;
         let scale = if self.trivial { 1.0 } else { self.j_ref };
-        let phi = fine.fld.mg_fields()[0]
-            .iter()
-            .map(|&x| T::c(x * scale))
-            .collect();
+        let phi = fine.fld.mg_phi().iter().map(|&x| T::c(x * scale)).collect();
         let mut sol = super::solution(
             grid,
             phi,
@@ -675,10 +725,20 @@ impl Contraction {
 /// the CPU samples of a 127³ FLD-LP multigrid solve (the smoother 22 %); the values are
 /// bit-identical to that loop (same operations per voxel).
 fn fresh_d(g: &Grid, phi: &[f64], sig: &[f64], cfg: &FldConfig, floor: f64) -> Vec<f64> {
+    let mut d = vec![0.0; g.len()];
+    fresh_d_into(g, phi, sig, cfg, floor, &mut d);
+    d
+}
+
+/// [`fresh_d`] into `d` (as long as the grid; every value is overwritten).
+fn fresh_d_into(g: &Grid, phi: &[f64], sig: &[f64], cfg: &FldConfig, floor: f64, d: &mut [f64]) {
     if cfg.limiter.is_constant() {
-        return sig.par_iter().map(|s| 1.0 / 3.0 / s).collect();
+        d.par_iter_mut()
+            .zip(sig)
+            .for_each(|(d, s)| *d = 1.0 / 3.0 / s);
+        return;
     }
-    super::limiter::with_limiter!(cfg.limiter, |lim| fresh_d_with(g, phi, sig, floor, lim))
+    super::limiter::with_limiter!(cfg.limiter, |lim| fresh_d_with(g, phi, sig, floor, lim, d))
 }
 
 /// [`fresh_d`] for one limiter `lim`: interior voxels of interior rows in a contiguous,
@@ -689,11 +749,11 @@ fn fresh_d_with<L: Fn(f64) -> f64 + Sync>(
     sig: &[f64],
     floor: f64,
     lim: L,
-) -> Vec<f64> {
+    d: &mut [f64],
+) {
     let [nx, ny, nz] = g.n;
     let plane = nx * ny;
     let inv_2dl = 0.5 / g.dl;
-    let mut d = vec![0.0; g.len()];
     d.par_chunks_mut(plane).enumerate().for_each(|(k, slab)| {
         let one_sided = |i: usize, j: usize| {
             let axis = |x: usize, n: usize| (x.saturating_sub(1), (x + 1).min(n - 1));
@@ -738,27 +798,28 @@ fn fresh_d_with<L: Fn(f64) -> f64 + Sync>(
             }
         }
     });
-    d
 }
 
-/// L(φ) of FLD Eq 32 (per unit volume, normalised units) at interior voxels, 0 on the layer.
+/// L(φ) of FLD Eq 32 (per unit volume, normalised units) into `out` (as long as the grid) at
+/// interior voxels, 0 on the layer.
 ///
 /// Row-sliced so the loop vectorises (the neighbour sums keep the order x−, x+, y−, y+, z−,
 /// z+, so the values are bit-identical to the per-voxel index loop this replaced, which was
 /// 8 % of a 127³ FLD-LP multigrid solve).
-fn apply(g: &Grid, phi: &[f64], d: &[f64], absorb: &[f64]) -> Vec<f64> {
+fn apply_into(g: &Grid, phi: &[f64], d: &[f64], absorb: &[f64], out: &mut [f64]) {
     let [nx, ny, nz] = g.n;
     let inv_dl2 = 1.0 / (g.dl * g.dl);
     let plane = nx * ny;
-    let mut out = vec![0.0; g.len()];
-    if nx < 3 {
-        return out;
-    }
     out.par_chunks_mut(plane).enumerate().for_each(|(k, slab)| {
-        if k == 0 || k + 1 == nz {
+        if k == 0 || k + 1 == nz || nx < 3 || ny < 3 {
+            slab.fill(0.0);
             return;
         }
+        slab[..nx].fill(0.0);
+        slab[(ny - 1) * nx..].fill(0.0);
         for j in 1..ny - 1 {
+            slab[j * nx] = 0.0;
+            slab[(j + 1) * nx - 1] = 0.0;
             let c = g.index(1, j, k);
             let len = nx - 2;
             let offsets = [c - 1, c + 1, c - nx, c + nx, c - plane, c + plane];
@@ -779,7 +840,6 @@ fn apply(g: &Grid, phi: &[f64], d: &[f64], absorb: &[f64]) -> Vec<f64> {
             }
         }
     });
-    out
 }
 
 /// How one axis coarsens. The Dirichlet values sit at the centres of the layer voxels, so
