@@ -4,7 +4,7 @@
 //! ## Layout
 //! Fields are stored as two packed checkerboards: colour `c` (0 = red, i + j + k even;
 //! 1 = black) keeps, per row (j, k), the voxels i = 2m + s with s = (c + j + k) mod 2 at
-//! position m, in rows of h values: ⌈nx/2⌉ made odd (see [`packed_row_len`]). A red pass then reads and writes contiguous
+//! position m, in rows of h values: ⌈nx/2⌉ made odd (see `packed_row_len`). A red pass then reads and writes contiguous
 //! memory of its own colour and reads the other colour's φ and D, so one iteration moves
 //! each value once instead of twice as a strided update on the natural layout would. The
 //! x-neighbours of voxel m of a row are entries m + s − 1 and m + s of the other colour's

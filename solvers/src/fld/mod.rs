@@ -157,8 +157,8 @@
 //!   ms (÷ triad of the same run): CDA f32 51.3 (0.20) → 31.0 (0.46), FLD-LP f32 132.1
 //!   (0.12) → 87.3 (0.21), CDA f64 69.6 (0.42) → 47.4 (0.66), FLD-LP f64 259.3 (0.10) →
 //!   139.4 (0.27); triad 29–48 GB/s across the probes of those runs. Issue 15's targets
-//!   (FLD-LP ≥ 0.4, CDA ≥ 0.6 of triad) are met for CDA f64 only: FLD-LP does ~60
-//!   vector instructions per voxel (Padé + exp + 4 divisions + sqrt besides the stencil) on
+//!   (FLD-LP ≥ 0.4, CDA ≥ 0.6 of triad) were then met for CDA f64 only (since the next
+//!   decision, for CDA in both precisions): FLD-LP does ~60 vector instructions per voxel (Padé + exp + 4 divisions + sqrt besides the stencil) on
 //!   two vCPUs, which at 0.4 of a 33 GB/s triad would have to retire in ~40 ms.
 //! * **Row length, boundary batch, split D loop (issue 15 item 4; 2026-12-06,
 //!   `results/bench/diffusion_cpu.csv`).** Three changes to `cpu.rs`, each bit-identical (hash
