@@ -423,9 +423,10 @@ impl<T: Real> CpuMultigrid<T> {
         v
     }
 
-    /// Returns `v` to level `l`'s pool.
-    fn give(&mut self, l: usize, v: Vec<f64>) {
-        self.levels[l].pool.push(v);
+    /// Returns `v` (a vector, or the optional D of [`CpuMultigrid::fresh_d`]) to level `l`'s
+    /// pool.
+    fn give(&mut self, l: usize, v: impl Into<Option<Vec<f64>>>) {
+        self.levels[l].pool.extend(v.into());
     }
 
     /// D of level `l` at φ in a pooled vector, or `None` for a constant limiter (whose D is
@@ -440,12 +441,13 @@ impl<T: Real> CpuMultigrid<T> {
         Some(d)
     }
 
-    /// The D to use on level `l`: `fresh` if recomputed, else the fixed D.
+    /// The D to use on level `l`: `fresh` if recomputed, else the fixed D ([`CpuMultigrid::fresh_d`]
+    /// returns `None` only when there is one).
     fn d_of<'s>(&'s self, l: usize, fresh: &'s Option<Vec<f64>>) -> &'s [f64] {
-        match (fresh, &self.levels[l].d_fixed) {
-            (Some(d), _) | (None, Some(d)) => d,
-            (None, None) => &[],
-        }
+        fresh
+            .as_deref()
+            .or(self.levels[l].d_fixed.as_deref())
+            .unwrap_or_default()
     }
 
     fn sweep(&mut self, l: usize) -> f64 {
@@ -481,13 +483,6 @@ impl<T: Real> CpuMultigrid<T> {
         r
     }
 
-    /// Returns the optional D of [`CpuMultigrid::fresh_d`] to level `l`'s pool.
-    fn give_d(&mut self, l: usize, d: Option<Vec<f64>>) {
-        if let Some(d) = d {
-            self.give(l, d);
-        }
-    }
-
     fn cycle_at(&mut self, l: usize, kind: Cycle) {
         if l + 1 == self.levels.len() {
             let mut first = None;
@@ -507,7 +502,7 @@ impl<T: Real> CpuMultigrid<T> {
         self.levels[l].fld.mg_phi_into(&mut phi);
         let d = self.fresh_d(l, &phi);
         let r = self.residual(l, &phi, &d);
-        self.give_d(l, d);
+        self.give(l, d);
         let (fg, cg) = (self.levels[l].grid, self.levels[l + 1].grid);
         let phi_c0 = restrict_mean(&fg, &cg, &phi);
         // `None` for a constant limiter: the coarse D is fixed and already in place.
@@ -534,7 +529,7 @@ impl<T: Real> CpuMultigrid<T> {
             c.rhs = fc;
             c.base = phi_c0.clone();
         }
-        self.give_d(l + 1, d_c);
+        self.give(l + 1, d_c);
         self.cycle_at(l + 1, kind);
         if kind == Cycle::F {
             self.cycle_at(l + 1, Cycle::V);
@@ -549,7 +544,7 @@ impl<T: Real> CpuMultigrid<T> {
             fl.mg_set(1, d);
         }
         self.give(l, phi);
-        self.give_d(l, d);
+        self.give(l, d);
         for _ in 0..self.mg.post {
             self.sweep(l);
         }
@@ -573,7 +568,7 @@ impl<T: Real> CpuMultigrid<T> {
         self.levels[0].fld.mg_phi_into(&mut phi);
         let d = self.fresh_d(0, &phi);
         let r = self.residual(0, &phi, &d);
-        self.give_d(0, d);
+        self.give(0, d);
         let w = ResidualWindow::new(&self.levels[0].grid, self.config.residual_margin);
         let [nx, ny, _] = self.levels[0].grid.n;
         // Per-slab partial sums added in slab order: the same sum for any thread count.
