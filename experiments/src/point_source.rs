@@ -65,7 +65,7 @@ pub struct Args {
     #[arg(long, default_value_t = 20_000, value_parser = crate::common::count_usize)]
     pub max_iterations: usize,
     /// Solvers, each run on every case: `sor` (red-black SOR, FLD Algorithm 1, the
-    /// reference) and/or `multigrid` (FAS V(2,2), `solvers::fld::multigrid`, CPU and GPU).
+    /// reference) and/or `multigrid` (FAS F(2,2), `solvers::fld::multigrid`, CPU and GPU).
     /// The plots and the error tables use the first; `rel_l2_vs_first_solver` in `runs.csv`
     /// compares the others with it.
     #[arg(long, value_delimiter = ',', value_enum, default_value = "sor")]
@@ -77,7 +77,7 @@ pub struct Args {
 pub enum SolverArg {
     /// Red-black SOR (FLD Algorithm 1).
     Sor,
-    /// FAS multigrid, V(2,2) cycles (CPU and GPU).
+    /// FAS multigrid, F(2,2) cycles (CPU and GPU).
     Multigrid,
 }
 
@@ -844,7 +844,7 @@ impl Experiment for PointSource {
         let find = |lim: &str, b: &str, k: &str, a: &str| find_with(lim, b, k, a, &first_solver);
         let cell = |r: Option<Row<'_>>, col: &str| r.map_or("–".to_string(), |r| r.fixed(col, 4));
         let solver_text = if first_solver == "multigrid" {
-            "FAS multigrid, V(2,2) cycles (`solvers::fld::multigrid`)"
+            "FAS multigrid, F(2,2) cycles (`solvers::fld::multigrid`; CPU: Krylov-accelerated, depth 3)"
         } else {
             "red-black SOR at ω = 2/(1 + sin(π/n))"
         };
@@ -857,7 +857,7 @@ impl Experiment for PointSource {
         if solvers.iter().any(|x| x == "sor") && solvers.iter().any(|x| x == "multigrid") {
             let _ = writeln!(
                 out,
-                "Time to solution, red-black SOR against FAS multigrid (V(2,2)), same run, same \
+                "Time to solution, red-black SOR against FAS multigrid (F(2,2); CPU: Krylov depth 3), same run, same \
                  tolerance on R̄/j̄. Work units: fine red-black sweeps (multigrid's coarse sweeps \
                  count 8^(−level)). Difference: relative L2 of φ, multigrid against SOR.\n"
             );

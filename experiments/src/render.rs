@@ -118,7 +118,7 @@ pub struct Args {
     #[arg(long, value_parser = crate::common::count_usize)]
     pub max_iterations: Option<usize>,
     /// Solver of a `cda`/`fld` method: `sor` (red-black SOR, FLD Algorithm 1, the default)
-    /// or `multigrid` (FAS V(2,2), `solvers::fld::multigrid`, CPU and GPU; the same as the
+    /// or `multigrid` (FAS F(2,2), `solvers::fld::multigrid`, CPU and GPU; the same as the
     /// method's `:mg` variant). Other methods have their own scheme and refuse it.
     #[arg(long, value_enum)]
     pub solver: Option<crate::point_source::SolverArg>,

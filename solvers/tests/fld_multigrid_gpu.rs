@@ -8,7 +8,7 @@
 
 mod common;
 
-use solvers::fld::multigrid::{CpuMultigrid, Cycle, GpuMultigrid, MgConfig};
+use solvers::fld::multigrid::{CoarseD, CpuMultigrid, Cycle, GpuMultigrid, MgConfig};
 use solvers::fld::{Boundary, FldConfig, FldSolution, FluxLimiter, GpuFld};
 use solvers::gpu::GpuContext;
 use solvers::{Backend, Medium, Stop, scenes};
@@ -64,8 +64,15 @@ fn gpu_mg(ctx: &GpuContext, m: &Medium<f32>, cfg: &FldConfig, mg: &MgConfig) -> 
         .unwrap()
 }
 
+/// The CPU-f32 multigrid with the GPU's plain FAS cycles (the GPU ignores `krylov` and the
+/// stall fallback of `CoarseD::Auto`).
 fn cpu_mg(m: &Medium<f32>, cfg: &FldConfig, mg: &MgConfig) -> FldSolution<f32> {
-    CpuMultigrid::new(m, &Boundary::Zero, cfg, mg)
+    let plain = MgConfig {
+        krylov: 0,
+        coarse_d: CoarseD::Recomputed,
+        ..mg.clone()
+    };
+    CpuMultigrid::new(m, &Boundary::Zero, cfg, &plain)
         .unwrap()
         .solve()
 }
@@ -162,10 +169,13 @@ fn gpu_f_cycles_converge() {
 /// The hard media of the CPU tests: the Fig 4 cloud, white noise with 95 % vacuum and with a
 /// 10⁴ contrast and no vacuum. The GPU ends as the CPU-f32 multigrid does (same stop): never
 /// `Converged` above the tolerance, never a non-finite φ; when it says `Converged` it agrees
-/// with the CPU-f32 multigrid. Measured on lavapipe (harmonic coarse σ, tolerance 10⁻⁵): CDA
-/// converges on both noises in 7 and 14 cycles on both; on the cloud CDA stops `Stalled` at
-/// f32's floor on both (R̄/j̄ ≈ 10⁻⁴); FLD-LP converges on the cloud (17) and the contrast
-/// noise (21) and stalls on 95 % vacuum (R̄/j̄ 2.1·10⁻²) on both.
+/// with the CPU-f32 multigrid. Measured on lavapipe (harmonic coarse σ, tolerance 10⁻⁵, V
+/// cycles): CDA converges on both noises in 7 and 14 cycles on both; on the cloud CDA stops
+/// `Stalled` at f32's floor on both (R̄/j̄ ≈ 10⁻⁴); FLD-LP converges on the cloud (17) and
+/// the contrast noise (21) and stalls on 95 % vacuum (R̄/j̄ 2.1·10⁻²) on both. With the F
+/// cycles of the default (2026-12-06): the cloud CDA `Stalled` after 20 cycles on both (R̄/j̄
+/// 9.0·10⁻⁵ and 1.2·10⁻⁴), FLD-LP converged after 16 and 15; 95 % vacuum CDA converged after
+/// 6 on both, FLD-LP `Stalled` after 17 on both (6.0·10⁻³).
 #[test]
 fn gpu_stalls_are_typed() {
     on_gpu("gpu_stalls_are_typed", |ctx| {
@@ -210,7 +220,7 @@ fn gpu_stalls_are_typed() {
 }
 
 /// The method interface reaches the GPU multigrid (`fld:lp:mg`, `cda:mg` on the GPU backend)
-/// and a source-free problem is solved without a cycle.
+/// and a source-free problem is solved without a cycle; `CoarseD::Restricted` is refused.
 #[test]
 fn gpu_multigrid_through_solve_with_and_trivial() {
     on_gpu("gpu_multigrid_through_solve_with_and_trivial", |ctx| {
@@ -232,5 +242,15 @@ fn gpu_multigrid_through_solve_with_and_trivial() {
         assert_eq!(t.stop, Stop::Converged);
         assert_eq!(t.steps, 0);
         assert!(t.phi.iter().all(|&x| x == 0.0));
+        // The Picard coarse levels are CPU only: a typed refusal, not a silent FAS.
+        let picard = MgConfig {
+            coarse_d: CoarseD::Restricted,
+            ..MgConfig::default()
+        };
+        let e = GpuMultigrid::new(ctx, &empty, &Boundary::Zero, &cfg, &picard).err();
+        assert!(
+            matches!(e, Some(solvers::SolverError::Unsupported(_))),
+            "{e:?}"
+        );
     });
 }

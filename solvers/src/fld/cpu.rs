@@ -295,6 +295,12 @@ impl<T: Real> CpuFld<T> {
         ResidualWindow::new(&self.grid, self.config.residual_margin).rms(sumsq)
     }
 
+    /// From now on the sweeps leave D alone (multigrid's Picard coarse levels: the caller
+    /// sets D), as they do for CDA.
+    pub(super) fn mg_freeze_d(&mut self) {
+        self.config.limiter = FluxLimiter::Cda;
+    }
+
     /// φ, D, σ and the absorption (1 − α)σΔl² in natural layout and normalised units.
     pub(super) fn mg_fields(&self) -> [Vec<f64>; 4] {
         [&self.phi, &self.d, &self.sig, &self.absorb].map(|f| self.unpack_f64(f, 1.0))

@@ -8,7 +8,7 @@
 //! [`FldConfig::default`]. Parameters: `omega` (SOR factor ω, FLD Eq 36) and `theta` (the
 //! under-relaxation of the D update, see the module docs of [`crate::fld`]).
 
-use super::multigrid::MgConfig;
+use super::multigrid::{MAX_KRYLOV, MgConfig};
 use super::{Boundary, FldConfig, FluxLimiter, VacuumFace};
 use crate::method::{
     AnisotropyScaling, Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem,
@@ -75,6 +75,22 @@ impl FldMethod {
         }
         if let Some(t) = params.get("theta") {
             self.config.d_relaxation = t;
+        }
+        if let Some(k) = params.get("krylov") {
+            let bad = |reason| SolverError::BadParameter {
+                name: "krylov",
+                value: k,
+                reason,
+            };
+            let Some(mg) = &mut self.multigrid else {
+                return Err(bad(
+                    "the Krylov acceleration is a multigrid setting (add :mg)",
+                ));
+            };
+            if !(k.fract() == 0.0 && (0.0..=MAX_KRYLOV as f64).contains(&k)) {
+                return Err(bad("the Krylov depth is an integer from 0 to 16"));
+            }
+            mg.krylov = k as usize;
         }
         self.config.validate()?;
         Ok(self)
@@ -170,6 +186,11 @@ const PARAMS: &[(&str, &str)] = &[
     (
         "theta",
         "under-relaxation θ ∈ (0, 1] of the D update; default 0.5, 1 = FLD Algorithm 1 verbatim",
+    ),
+    (
+        "krylov",
+        "multigrid (:mg) only: depth 0–16 of the Krylov acceleration of the cycles; default 3, \
+         0 = plain cycles",
     ),
 ];
 

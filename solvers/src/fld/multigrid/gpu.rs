@@ -24,6 +24,14 @@
 //!   f64 around an f32 smoother. R̄/j̄ then floors where f32 rounding dominates: it reached
 //!   9·10⁻⁸ on the 33³ point source, but on the Fig 4 cloud CDA stops `Stalled` near 10⁻⁴ (as
 //!   the CPU-f32 multigrid does; the f32 default tolerance is 10⁻⁴). GPU vs CPU-f32 is compared at convergence (`tests/fld_multigrid_gpu.rs`).
+//! * **Plain FAS cycles: [`MgConfig::krylov`] and the stall fallback of [`super::CoarseD::Auto`]
+//!   are CPU settings, ignored here** ([`super::CoarseD::Restricted`] is refused with a typed
+//!   error). The CPU's Krylov acceleration keeps 2(k + 1) fine-grid vectors and needs k + 1
+//!   dot products and a combination pass per cycle; on the device that is k + 1 more sums
+//!   per read-back and 2(k + 1) more bindings than the transfer kernel's, and the Picard
+//!   coarse levels need a smoother that leaves D alone on coarse levels only; neither is
+//!   built yet. The GPU therefore runs the cycles the CPU runs with `krylov: 0` and
+//!   `CoarseD::Recomputed`, and is compared with those (`tests/fld_multigrid_gpu.rs`).
 
 use super::{Contraction, CpuMultigrid, Cycle, MgConfig, axes};
 use crate::fld::gpu::{GpuFld, larsen_n, limiter_id};
@@ -205,7 +213,18 @@ impl<'a> GpuMultigrid<'a> {
         for g in groups(&medium.grid) {
             ctx.check_workgroups("the multigrid transfers", g)?;
         }
-        let host = CpuMultigrid::<f32>::new(medium, boundary, config, mg)?;
+        if mg.coarse_d == super::CoarseD::Restricted {
+            return Err(SolverError::Unsupported(
+                "the GPU multigrid recomputes the coarse D (CoarseD::Restricted is CPU only)"
+                    .into(),
+            ));
+        }
+        let plain = MgConfig {
+            krylov: 0,
+            coarse_d: super::CoarseD::Recomputed,
+            ..mg.clone()
+        };
+        let host = CpuMultigrid::<f32>::new(medium, boundary, config, &plain)?;
         let cfg = &host.config;
         let fld = !cfg.limiter.is_constant();
         let fine = host.levels[0].grid;
