@@ -370,6 +370,9 @@ pub struct CpuMultigrid<T> {
     krylov: Krylov,
     estimate: ErrorEstimate,
     frozen: bool,
+    /// A one-thread pool for the levels below [`SERIAL_VOXELS`] (`None` while in use, or if
+    /// it could not be built: then everything runs on the global pool).
+    serial: Option<rayon::ThreadPool>,
 }
 
 impl<T: Real> CpuMultigrid<T> {
@@ -517,6 +520,7 @@ impl<T: Real> CpuMultigrid<T> {
             krylov: Krylov::new(mg.krylov),
             estimate: ErrorEstimate::default(),
             frozen,
+            serial: rayon::ThreadPoolBuilder::new().num_threads(1).build().ok(),
         })
     }
 
@@ -609,24 +613,19 @@ impl<T: Real> CpuMultigrid<T> {
         r
     }
 
-    /// Residual f − L(φ) with D recomputed from φ, in place over L(φ) (which [`apply_into`]
-    /// leaves 0 on the Dirichlet layer), parallel over z-slabs, in a pooled vector.
+    /// Residual f − L(φ) with D recomputed from φ (0 on the Dirichlet layer), in one pass
+    /// ([`apply_into`] with the right-hand side), in a pooled vector.
     fn residual(&mut self, l: usize, phi: &[f64], d: &Option<Vec<f64>>) -> Vec<f64> {
         let mut r = self.take(l);
         let lv = &self.levels[l];
-        let [nx, ny, nz] = lv.grid.n;
-        apply_into(&lv.grid, phi, self.d_of(l, d), &lv.absorb, &mut r);
-        r.par_chunks_mut(nx * ny)
-            .zip(lv.rhs.par_chunks(nx * ny))
-            .enumerate()
-            .filter(|(k, _)| *k > 0 && k + 1 < nz)
-            .for_each(|(_, (slab, fs))| {
-                for j in 1..ny - 1 {
-                    for i in j * nx + 1..(j + 1) * nx - 1 {
-                        slab[i] = fs[i] - slab[i];
-                    }
-                }
-            });
+        apply_into(
+            &lv.grid,
+            phi,
+            self.d_of(l, d),
+            &lv.absorb,
+            Some(&lv.rhs),
+            &mut r,
+        );
         r
     }
 
@@ -668,6 +667,7 @@ impl<T: Real> CpuMultigrid<T> {
             &phi_c0,
             self.d_of(l + 1, &d_c),
             &self.levels[l + 1].absorb,
+            None,
             &mut lc,
         );
         let rc = restrict_fw(&fg, &cg, &r);
@@ -685,9 +685,9 @@ impl<T: Real> CpuMultigrid<T> {
             c.base = phi_c0.clone();
         }
         self.give(l + 1, d_c);
-        self.cycle_at(l + 1, kind);
+        self.visit(l + 1, kind);
         if kind == Cycle::F {
-            self.cycle_at(l + 1, Cycle::V);
+            self.visit(l + 1, Cycle::V);
         }
         let phi_c = self.levels[l + 1].fld.mg_phi();
         let e: Vec<f64> = phi_c.par_iter().zip(&phi_c0).map(|(a, b)| a - b).collect();
@@ -712,7 +712,37 @@ impl<T: Real> CpuMultigrid<T> {
 
     /// One cycle: R̄/j̄ after it and the error estimate of [`ErrorEstimate`] (0 and 0 for the
     /// trivial problem).
+    /// [`CpuMultigrid::cycle_at`] level `l`, on one thread if the level is small.
+    fn visit(&mut self, l: usize, kind: Cycle) {
+        if self.levels[l].grid.len() < SERIAL_VOXELS {
+            self.serially(|mg| mg.cycle_at(l, kind));
+        } else {
+            self.cycle_at(l, kind);
+        }
+    }
+
+    /// Runs `f` inside the one-thread pool (inline when already inside it).
+    fn serially<R: Send>(&mut self, f: impl FnOnce(&mut Self) -> R + Send) -> R {
+        match self.serial.take() {
+            Some(pool) => {
+                let r = pool.install(|| f(self));
+                self.serial = Some(pool);
+                r
+            }
+            None => f(self),
+        }
+    }
+
     fn cycle_estimate(&mut self) -> (f64, f64) {
+        if self.levels[0].grid.len() < SERIAL_VOXELS {
+            self.serially(|mg| mg.cycle_estimate_on())
+        } else {
+            self.cycle_estimate_on()
+        }
+    }
+
+    /// [`CpuMultigrid::cycle_estimate`] on the current pool.
+    fn cycle_estimate_on(&mut self) -> (f64, f64) {
         if self.trivial {
             self.cycles += 1;
             self.residuals.push(0.0);
@@ -846,6 +876,20 @@ impl<T: Real> CpuMultigrid<T> {
 /// drops the history but for its own result (a restart). The Gram matrix of the residuals is kept up to date
 /// with one pass per cycle (sums per z-slab added in slab order: the same for any thread
 /// count).
+/// Levels with fewer voxels than this (about 34³) run on one thread, inside a one-thread
+/// pool so that every parallel loop of theirs runs inline. *Why*: a cycle issues dozens of
+/// parallel loops per level visit, and on small levels waking the pool's workers costs more
+/// than the loop (`perf` of a 19³ CDA solve: `sched_yield` and the scheduler took most of the
+/// samples; 5 cycles took 17 ms where the arithmetic is well under 1 ms). Measured
+/// (2026-12-06, 2-vCPU AMD EPYC, point source, seconds of the solve, threshold 0 → 40000 →
+/// 110000): n = 31 CDA 0.024 → 0.012 → 0.011, FLD-LP 0.093 → 0.077 → 0.075; n = 47 CDA
+/// 0.048 → 0.030 → 0.034, FLD-LP 0.194 → 0.158 → 0.209; n = 63 CDA 0.077 → 0.060 → 0.054,
+/// FLD-LP 0.385 → 0.366 → 0.345; n = 127 CDA 0.397 → 0.379 → 0.375, FLD-LP 2.31 → 2.30 →
+/// 2.27 (a 270000 threshold, which puts 63³ on one thread, made 63³ FLD-LP 0.52 s). The
+/// arithmetic and the order of every sum are the same on any number of threads, so φ is
+/// bit-identical.
+const SERIAL_VOXELS: usize = 40_000;
+
 /// A cycle whose R̄/j̄ grows by this factor or more restarts the Krylov history. *Why not
 /// 1 (any growth)*: on shell_core (18³, CDA) the residual alternates up and down by a few
 /// per cent for the first cycles, so a restart on any growth kept the history at one or
@@ -1167,12 +1211,20 @@ fn fresh_d_with<L: Fn(f64) -> f64 + Sync>(
 }
 
 /// L(φ) of FLD Eq 32 (per unit volume, normalised units) into `out` (as long as the grid) at
-/// interior voxels, 0 on the layer.
+/// interior voxels, 0 on the layer; with `rhs`, the residual rhs − L(φ) instead.
 ///
 /// Row-sliced so the loop vectorises (the neighbour sums keep the order x−, x+, y−, y+, z−,
 /// z+, so the values are bit-identical to the per-voxel index loop this replaced, which was
-/// 8 % of a 127³ FLD-LP multigrid solve).
-fn apply_into(g: &Grid, phi: &[f64], d: &[f64], absorb: &[f64], out: &mut [f64]) {
+/// 8 % of a 127³ FLD-LP multigrid solve). The subtraction runs on the row just written, so
+/// the residual is one pass over memory instead of two (bit-identical to the separate pass).
+fn apply_into(
+    g: &Grid,
+    phi: &[f64],
+    d: &[f64],
+    absorb: &[f64],
+    rhs: Option<&[f64]>,
+    out: &mut [f64],
+) {
     let [nx, ny, nz] = g.n;
     let inv_dl2 = 1.0 / (g.dl * g.dl);
     let plane = nx * ny;
@@ -1203,6 +1255,11 @@ fn apply_into(g: &Grid, phi: &[f64], d: &[f64], absorb: &[f64], out: &mut [f64])
                 let den = ap[q] + 0.5 * (6.0 * dp[q] + sd);
                 let num = 0.5 * (dp[q] * sphi + sdphi);
                 row[q] = (pp[q] * den - num) * inv_dl2;
+            }
+            if let Some(f) = rhs {
+                for (x, f) in row.iter_mut().zip(&f[c..c + len]) {
+                    *x = f - *x;
+                }
             }
         }
     });
