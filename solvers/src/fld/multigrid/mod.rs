@@ -192,18 +192,26 @@
 //!   n = 31, 63, 127, 255: point source CDA 5, 5, 5, 5 (was 8, 8, 8, 8), FLD-LP 9, 10, 11, 13
 //!   (11, 15, 18, 25); Fig 4 cloud CDA 10, 12, 14, 16 (20, 33, 48, 67), FLD-LP 14, 21, 54,
 //!   154 (23, 48, then `Stalled` at 127 and 255). 255³ seconds: point source CDA 4.2 (4.0),
-//!   FLD-LP 19.7 (30.6); cloud CDA 9.4 (30.7), FLD-LP 192 (`Stalled` after 20 cycles, 23.9 s). `point_source
+//!   FLD-LP 19.7 (30.6); cloud CDA 9.4 (30.7), FLD-LP 192 (`Stalled` after 20 cycles, 23.9 s);
+//!   rerun after the one-thread small levels ([`SERIAL_VOXELS`], same cycles): 3.7, 19.1,
+//!   8.8, 191 s. `point_source
 //!   --n 127 --boundary zero --tolerance 1e-6 --solver sor,multigrid --limiter cda,lp`, SOR
 //!   vs multigrid seconds at α = 0.1, 0.3, 0.5, 0.7, 0.9, 0.99: CDA 1.21/0.51 (2.4×),
 //!   1.20/0.41 (2.9×), 1.09/0.40 (2.7×), 1.12/0.49 (2.3×), 1.12/0.44 (2.6×), 1.12/0.41
 //!   (2.8×), 5 cycles (26.1 work units) each; FLD-LP 13.6/2.44 (5.6×), 8.23/2.89 (2.8×),
 //!   8.65/2.38 (3.6×), 10.4/2.39 (4.4×), 11.8/2.35 (5.0×), 17.0/2.38 (7.2×), 11 cycles (57.5
-//!   work units) each; relative L2 to SOR 0.4–3.6·10⁻⁶.
+//!   work units) each; relative L2 to SOR 0.4–3.6·10⁻⁶. The datasets of `convergence_check`
+//!   (18³, tolerance 10⁻⁴, f64, after the one-thread small levels of [`SERIAL_VOXELS`]):
+//!   SOR vs multigrid seconds, CDA nebula 0.0039/0.0049, emissive_cloud 0.0038/0.0056,
+//!   plume 0.0027/0.0048, cube (σt·Δl = 6) 0.0019/0.0052, shell_core 0.74/0.0096; FLD-LP
+//!   0.028/0.025, 0.030/0.023, 0.022/0.021, 0.010/0.018, shell_core 2.89/0.078. Multigrid is
+//!   therefore not faster everywhere it converges (small CDA grids), and SOR stays the
+//!   default solver (issue 15 item 4).
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154, most of them Picard cycles after
 //!   the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
 //!   holds for CDA on the point source only. On small vacuum clouds SOR is faster (CDA n =
-//!   31: 0.012 s against 0.076 s). A CDA cycle costs about 3.8 SOR sweeps of wall time per
+//!   31: 0.009 s against 0.023 s, 0.076 s before [`SERIAL_VOXELS`]). A CDA cycle costs about 3.8 SOR sweeps of wall time per
 //!   work unit (transfers, residuals, packing), so the ≥ 10× of issue 15 is not met at 127³.
 //!   FLD-LP on white noise with 95 % vacuum still stalls in f32 (the GPU test). shell_core
 //!   (`convergence_check`) now converges (previous bullets). Operator-dependent
