@@ -7,7 +7,7 @@
 //! and the reference of test T15.
 //!
 //! **Same numbers, different summation.** The sub-segment update is the public
-//! [`cpu::segment`] (LPM Eq 3 in the conservative form, spec §1.6) on the shared geometry
+//! `cpu::segment` (LPM Eq 3 in the conservative form, spec §1.6) on the shared geometry
 //! tables ([`DirectionTable`]), directions and phase matrix, with the same wrap rules (D12),
 //! formulas (D3–D6), stopping rules (D1) and tallies. Per sub-segment of direction i in voxel
 //! v with ∫L ds = `int`, Alg 1 adds σs_v·A_i F^{i,d′}/(h³|Ω^{d′}|)·int to every U^{d′,cur}_v

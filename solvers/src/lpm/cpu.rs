@@ -1193,7 +1193,7 @@ pub fn to_x_layout<T: Copy + Default + Send + Sync>(grid: &Grid, field: &[T]) ->
 }
 
 /// [`to_x_layout`] into `out`: tiled transposes of the n_x × n_y planes (the mirror of
-/// [`from_x_layout`]), in parallel over groups of [`TILE`] x planes of `out`.
+/// [`from_x_layout`]), in parallel over groups of `TILE` x planes of `out`.
 pub fn to_x_layout_into<T: Copy + Send + Sync>(grid: &Grid, field: &[T], out: &mut [T]) {
     let [nx, ny, nz] = grid.n;
     let sx = ny * nz; // out's stride of x
@@ -1219,7 +1219,7 @@ pub fn to_x_layout_into<T: Copy + Send + Sync>(grid: &Grid, field: &[T], out: &m
 }
 
 /// The inverse of [`to_x_layout`], into `out`: per z a transpose of the n_x × n_y plane in
-/// tiles of [`TILE`]², contiguous reads and writes of stride n_x (the plain triple loop,
+/// tiles of `TILE`², contiguous reads and writes of stride n_x (the plain triple loop,
 /// with a bounds check per word, was 12 % of a 64³ solve's profile, the tiles 6 %), in
 /// parallel over the z planes.
 pub fn from_x_layout<T: Copy + Send + Sync>(grid: &Grid, local: &[T], out: &mut [T]) {

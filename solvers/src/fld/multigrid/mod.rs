@@ -145,7 +145,7 @@
 //!   whatever σ): Fig 4 cloud 22 → 23 (n = 31) and 49 → 48 (n = 63) cycles, datasets ±1
 //!   cycle, FLD-LP on shell_core stalls either way.
 //! * **Krylov acceleration of the cycles, depth 3 by default ([`MgConfig::krylov`],
-//!   [`Krylov`]; added 2026-12-06).** Oosterlee & Washio's nonlinear Krylov acceleration:
+//!   `Krylov`; added 2026-12-06).** Oosterlee & Washio's nonlinear Krylov acceleration:
 //!   before each cycle, φ becomes the combination of the last k + 1 cycle results whose
 //!   linearised residual is least (for CDA, GMRES-like; for FLD a multisecant step), with a
 //!   restart whenever a cycle ends with a larger R̄/j̄ than the one before. *Why*: the plain
@@ -158,7 +158,7 @@
 //!   FLD-LP cloud 23, 48 → 17, 34 at n = 31, 63 and still `Stalled` at 127 and 255 (next
 //!   bullet). Depth 1, 2, 3, 6 on the cloud at n = 63 and 127 (CDA): 19, 27; 13, 19; 13, 17;
 //!   12, 16 cycles; FLD-LP at n = 63: 40, 40, 34, 30. A restart only when a cycle grows
-//!   R̄/j̄ by 1.5× or more ([`RESTART_GROWTH`]): restarting on any growth left CDA on
+//!   R̄/j̄ by 1.5× or more (`RESTART_GROWTH`): restarting on any growth left CDA on
 //!   shell_core (18³) `Stalled` at 0.81, where it now converges in 16 cycles (plain cycles:
 //!   R̄/j̄ 0.70 after 100). Depth 3 keeps 8 fine-grid vectors
 //!   (1.1 GB at 255³, checked against the memory budget). Its cost per cycle (the Gram
@@ -193,15 +193,17 @@
 //!   (11, 15, 18, 25); Fig 4 cloud CDA 10, 12, 14, 16 (20, 33, 48, 67), FLD-LP 14, 21, 54,
 //!   154 (23, 48, then `Stalled` at 127 and 255). 255³ seconds: point source CDA 4.2 (4.0),
 //!   FLD-LP 19.7 (30.6); cloud CDA 9.4 (30.7), FLD-LP 192 (`Stalled` after 20 cycles, 23.9 s);
-//!   rerun after the one-thread small levels ([`SERIAL_VOXELS`], same cycles): 3.7, 19.1,
+//!   rerun after the one-thread small levels (`SERIAL_VOXELS`, same cycles): 3.7, 19.1,
 //!   8.8, 191 s. `point_source
 //!   --n 127 --boundary zero --tolerance 1e-6 --solver sor,multigrid --limiter cda,lp`, SOR
 //!   vs multigrid seconds at α = 0.1, 0.3, 0.5, 0.7, 0.9, 0.99: CDA 1.21/0.51 (2.4×),
 //!   1.20/0.41 (2.9×), 1.09/0.40 (2.7×), 1.12/0.49 (2.3×), 1.12/0.44 (2.6×), 1.12/0.41
 //!   (2.8×), 5 cycles (26.1 work units) each; FLD-LP 13.6/2.44 (5.6×), 8.23/2.89 (2.8×),
 //!   8.65/2.38 (3.6×), 10.4/2.39 (4.4×), 11.8/2.35 (5.0×), 17.0/2.38 (7.2×), 11 cycles (57.5
-//!   work units) each; relative L2 to SOR 0.4–3.6·10⁻⁶. The datasets of `convergence_check`
-//!   (18³, tolerance 10⁻⁴, f64, after the one-thread small levels of [`SERIAL_VOXELS`]):
+//!   work units) each; relative L2 to SOR 0.4–3.6·10⁻⁶. After `SERIAL_VOXELS` (same
+//!   command, α = 0.5 and 0.99, one run): CDA 1.22/0.366 (3.3×) and 1.13/0.353 (3.2×),
+//!   FLD-LP 8.35/2.24 (3.7×) and 16.4/2.20 (7.5×). The datasets of `convergence_check`
+//!   (18³, tolerance 10⁻⁴, f64, after the one-thread small levels of `SERIAL_VOXELS`):
 //!   SOR vs multigrid seconds, CDA nebula 0.0039/0.0049, emissive_cloud 0.0038/0.0056,
 //!   plume 0.0027/0.0048, cube (σt·Δl = 6) 0.0019/0.0052, shell_core 0.74/0.0096; FLD-LP
 //!   0.028/0.025, 0.030/0.023, 0.022/0.021, 0.010/0.018, shell_core 2.89/0.078. Multigrid is
@@ -211,7 +213,7 @@
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154, most of them Picard cycles after
 //!   the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
 //!   holds for CDA on the point source only. On small vacuum clouds SOR is faster (CDA n =
-//!   31: 0.009 s against 0.023 s, 0.076 s before [`SERIAL_VOXELS`]). A CDA cycle costs about 3.8 SOR sweeps of wall time per
+//!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`). A CDA cycle costs about 3.8 SOR sweeps of wall time per
 //!   work unit (transfers, residuals, packing), so the ≥ 10× of issue 15 is not met at 127³.
 //!   FLD-LP on white noise with 95 % vacuum still stalls in f32 (the GPU test). shell_core
 //!   (`convergence_check`) now converges (previous bullets). Operator-dependent
@@ -285,7 +287,7 @@ pub struct MgConfig {
     pub coarse_sigma: CoarseSigma,
     /// Krylov acceleration of the cycles (Oosterlee & Washio's nonlinear Krylov subspace
     /// acceleration): before each cycle the fine φ is replaced by the combination of the last
-    /// `krylov + 1` cycle results whose linearised residual is least ([`Krylov`]). 0 = plain
+    /// `krylov + 1` cycle results whose linearised residual is least (`Krylov`). 0 = plain
     /// cycles. Default measured in the module docs.
     pub krylov: usize,
     /// How a coarse level's D is formed (FLD limiters; CDA's D is fixed either way).
@@ -312,7 +314,7 @@ pub enum CoarseD {
 /// The σ of a coarse level's diffusion coefficient (its absorption always keeps ∫σa).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum CoarseSigma {
-    /// The harmonic mean of the children's σ (with the same weights as [`Axis::mean`]), so a
+    /// The harmonic mean of the children's σ (with the same weights as `Axis::mean`), so a
     /// constant limiter's coarse D is the mean of the fine D: a vacuum child (D = 1/(3σ_ε),
     /// a near-perfect conductor) keeps the coarse voxel conducting, as the fine faces'
     /// arithmetic mean of D does. The default; measured in the module docs.
@@ -378,7 +380,7 @@ pub struct CpuMultigrid<T> {
     krylov: Krylov,
     estimate: ErrorEstimate,
     frozen: bool,
-    /// A one-thread pool for the levels below [`SERIAL_VOXELS`] (`None` while in use, or if
+    /// A one-thread pool for the levels below `SERIAL_VOXELS` (`None` while in use, or if
     /// it could not be built: then everything runs on the global pool).
     serial: Option<rayon::ThreadPool>,
 }
@@ -880,7 +882,7 @@ impl<T: Real> CpuMultigrid<T> {
 /// φ_m + Σ α_i (φ_i − φ_m) with α minimising ‖r_m + Σ α_i (r_i − r_m)‖₂, the residual of
 /// the combination were L linear (for CDA it is: this is GMRES-like acceleration of the
 /// cycle; for FLD a multisecant step). The combination is projected to φ ≥ 0 as the smoother
-/// projects. A cycle that ends with [`RESTART_GROWTH`] times the R̄/j̄ of the one before
+/// projects. A cycle that ends with `RESTART_GROWTH` times the R̄/j̄ of the one before
 /// drops the history but for its own result (a restart). The Gram matrix of the residuals is kept up to date
 /// with one pass per cycle (sums per z-slab added in slab order: the same for any thread
 /// count).
@@ -1403,7 +1405,7 @@ fn restrict_medium(
     Ok((cg, restrict_mean(g, &cg, st), restrict_mean(g, &cg, ss)))
 }
 
-/// Coarse interior values as [`Axis::mean`] (tensor product); the coarse Dirichlet layer
+/// Coarse interior values as `Axis::mean` (tensor product); the coarse Dirichlet layer
 /// copies the nearest fine layer voxel.
 fn restrict_mean(g: &Grid, cg: &Grid, v: &[f64]) -> Vec<f64> {
     let ax = axes(g);

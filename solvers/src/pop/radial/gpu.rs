@@ -1,7 +1,7 @@
 //! A point light's radial octahedral grid on the GPU (f32), the twin of [`RadialPop::step`]:
 //! same cell layout, the same per-cell arithmetic in the same order, the same stop and the
 //! same geometric tail, both evaluated at checkpoints. The shader is `radial.wgsl` beside
-//! this file; [`RadialParams`] is mirrored there as `Params` and [`SPEC`] declares its
+//! this file; `RadialParams` is mirrored there as `Params` and `SPEC` declares its
 //! bindings by name (both checked against the WGSL by `tests/kernel_contract.rs`).
 //!
 //! **What runs where.** The host builds the light's [`RadialPop`] as the CPU solve does (the
