@@ -67,12 +67,7 @@ fn gpu_mg(ctx: &GpuContext, m: &Medium<f32>, cfg: &FldConfig, mg: &MgConfig) -> 
 /// The CPU-f32 multigrid with the GPU's plain FAS cycles (the GPU ignores `krylov` and the
 /// stall fallback of `CoarseD::Auto`).
 fn cpu_mg(m: &Medium<f32>, cfg: &FldConfig, mg: &MgConfig) -> FldSolution<f32> {
-    let plain = MgConfig {
-        krylov: 0,
-        coarse_d: CoarseD::Recomputed,
-        ..mg.clone()
-    };
-    CpuMultigrid::new(m, &Boundary::Zero, cfg, &plain)
+    CpuMultigrid::new(m, &Boundary::Zero, cfg, &mg.plain_fas())
         .unwrap()
         .solve()
 }

@@ -8,7 +8,7 @@
 //! [`FldConfig::default`]. Parameters: `omega` (SOR factor ω, FLD Eq 36) and `theta` (the
 //! under-relaxation of the D update, see the module docs of [`crate::fld`]).
 
-use super::multigrid::{MAX_KRYLOV, MgConfig};
+use super::multigrid::MgConfig;
 use super::{Boundary, FldConfig, FluxLimiter, VacuumFace};
 use crate::method::{
     AnisotropyScaling, Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem,
@@ -87,10 +87,12 @@ impl FldMethod {
                     "the Krylov acceleration is a multigrid setting (add :mg)",
                 ));
             };
-            if !(k.fract() == 0.0 && (0.0..=MAX_KRYLOV as f64).contains(&k)) {
-                return Err(bad("the Krylov depth is an integer from 0 to 16"));
+            if !(k.fract() == 0.0 && k >= 0.0) {
+                return Err(bad("the Krylov depth is a non-negative integer"));
             }
+            // The upper bound is `MgConfig::validate`'s.
             mg.krylov = k as usize;
+            mg.validate()?;
         }
         self.config.validate()?;
         Ok(self)

@@ -219,12 +219,7 @@ impl<'a> GpuMultigrid<'a> {
                     .into(),
             ));
         }
-        let plain = MgConfig {
-            krylov: 0,
-            coarse_d: super::CoarseD::Recomputed,
-            ..mg.clone()
-        };
-        let host = CpuMultigrid::<f32>::new(medium, boundary, config, &plain)?;
+        let host = CpuMultigrid::<f32>::new(medium, boundary, config, &mg.plain_fas())?;
         let cfg = &host.config;
         let fld = !cfg.limiter.is_constant();
         let fine = host.levels[0].grid;

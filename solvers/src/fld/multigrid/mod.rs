@@ -161,12 +161,12 @@
 //!   R̄/j̄ by 1.5× or more (`RESTART_GROWTH`): restarting on any growth left CDA on
 //!   shell_core (18³) `Stalled` at 0.81, where it now converges in 16 cycles (plain cycles:
 //!   R̄/j̄ 0.70 after 100). Depth 3 keeps 8 fine-grid vectors
-//!   (1.1 GB at 255³, checked against the memory budget). Its cost per cycle (the Gram
-//!   update reads k + 2 residuals, the combination k + 1 iterates) was about 7 ms of a
-//!   56 ms CDA cycle at 127³ once φ moved into the history instead of being copied and the
-//!   error estimate's sums ran in parallel; on the point source, where it saves one or two
-//!   cycles, the solve takes as long as without it (127³ CDA 0.56–0.58 s either way, 255³
-//!   5.3 vs 5.6 s, one run each). `krylov_acceleration_cuts_cycles_where_vacuum_slows_the_plain_cycle`
+//!   (1.1 GB at 255³, checked against the memory budget). Each cycle it reads k + 2
+//!   residuals (the Gram update) and k + 1 iterates (the combination); once φ moved into the
+//!   history instead of being copied and the error estimate's sums ran in parallel, the point
+//!   source, where it saves one or two cycles, takes as long as without it (127³ CDA 0.56–0.58
+//!   s either way over two runs each, 255³ 5.3 s against 5.6 s, one run each; seconds
+//!   include setup). `krylov_acceleration_cuts_cycles_where_vacuum_slows_the_plain_cycle`
 //!   (`tests/fld_multigrid.rs`) pins it. The GPU runs plain cycles ([`gpu`]).
 //! * **Coarse D of FLD: FAS, and Picard coarse levels once the FAS stalls
 //!   ([`CoarseD::Auto`], the default; 2026-12-06).** On the Fig 4 cloud at n = 127 FLD-LP
@@ -210,11 +210,12 @@
 //!   therefore not faster everywhere it converges (small CDA grids), and SOR stays the
 //!   default solver (issue 15 item 4).
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
-//!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154, most of them Picard cycles after
-//!   the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
+//!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; at n = 127 with V cycles, 84 of
+//!   108 were Picard cycles after the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
 //!   holds for CDA on the point source only. On small vacuum clouds SOR is faster (CDA n =
-//!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`). A CDA cycle costs about 3.8 SOR sweeps of wall time per
-//!   work unit (transfers, residuals, packing), so the ≥ 10× of issue 15 is not met at 127³.
+//!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`). A CDA work unit of multigrid costs about 3.9 SOR sweeps of
+//!   wall time (127³, α = 0.5: 0.40 s / 26.1 work units against SOR's 1.09 s / 277 sweeps;
+//!   transfers, residuals, packing), so the ≥ 10× of issue 15 is not met at 127³.
 //!   FLD-LP on white noise with 95 % vacuum still stalls in f32 (the GPU test). shell_core
 //!   (`convergence_check`) now converges (previous bullets). Operator-dependent
 //!   (Galerkin-type) coarse coefficients and a Newton-type treatment of the limiter's
@@ -325,6 +326,38 @@ pub enum CoarseSigma {
     Arithmetic,
 }
 
+impl MgConfig {
+    /// Typed errors for settings no solve can run with: no smoothing sweep at all, or a
+    /// Krylov depth above [`MAX_KRYLOV`].
+    pub fn validate(&self) -> Result<(), SolverError> {
+        if self.pre + self.post == 0 {
+            return Err(SolverError::BadParameter {
+                name: "smoothing sweeps",
+                value: 0.0,
+                reason: "multigrid needs at least one pre- or post-smoothing sweep",
+            });
+        }
+        if self.krylov > MAX_KRYLOV {
+            return Err(SolverError::BadParameter {
+                name: "krylov",
+                value: self.krylov as f64,
+                reason: "the Krylov depth is an integer from 0 to 16",
+            });
+        }
+        Ok(())
+    }
+
+    /// The settings the GPU multigrid runs ([`gpu`]): plain FAS cycles, without the CPU's
+    /// Krylov acceleration and stall fallback.
+    pub fn plain_fas(&self) -> Self {
+        Self {
+            krylov: 0,
+            coarse_d: CoarseD::Recomputed,
+            ..self.clone()
+        }
+    }
+}
+
 impl Default for MgConfig {
     fn default() -> Self {
         Self {
@@ -401,20 +434,7 @@ impl<T: Real> CpuMultigrid<T> {
                     .into(),
             ));
         }
-        if mg.pre + mg.post == 0 {
-            return Err(SolverError::BadParameter {
-                name: "smoothing sweeps",
-                value: 0.0,
-                reason: "multigrid needs at least one pre- or post-smoothing sweep",
-            });
-        }
-        if mg.krylov > MAX_KRYLOV {
-            return Err(SolverError::BadParameter {
-                name: "krylov",
-                value: mg.krylov as f64,
-                reason: "the Krylov depth is at most 16",
-            });
-        }
+        mg.validate()?;
         // The Krylov history: 2(k + 1) f64 vectors of the fine grid.
         crate::budget::check(
             format!("multigrid Krylov history (depth {})", mg.krylov),
@@ -448,14 +468,8 @@ impl<T: Real> CpuMultigrid<T> {
             .map(|(s, a)| s.f() * a.f())
             .collect();
         let mut g = medium.grid;
-        let frozen = mg.coarse_d == CoarseD::Restricted && !cfg.limiter.is_constant();
         let coarse_cfg = FldConfig {
             residual_margin: 0,
-            limiter: if frozen {
-                FluxLimiter::Cda
-            } else {
-                cfg.limiter
-            },
             ..cfg.clone()
         };
         while g.n.iter().all(|&n| n >= 6) && levels.len() < 16 {
@@ -501,13 +515,6 @@ impl<T: Real> CpuMultigrid<T> {
             levels.push(lv);
             (g, st, ss) = (cg, cst, css);
         }
-        if frozen {
-            for lv in levels.iter_mut().skip(1) {
-                let d = fresh_d(&lv.grid, &[], &lv.sig, &coarse_cfg, floor);
-                lv.fld.mg_set(1, &d);
-                lv.d_fixed = Some(d);
-            }
-        }
         if cfg.limiter.is_constant() {
             for lv in &mut levels {
                 let d = fresh_d(&lv.grid, &[], &lv.sig, &cfg, floor);
@@ -515,7 +522,7 @@ impl<T: Real> CpuMultigrid<T> {
                 lv.d_fixed = Some(d);
             }
         }
-        Ok(Self {
+        let mut solve = Self {
             levels,
             config: cfg,
             mg: mg.clone(),
@@ -529,14 +536,23 @@ impl<T: Real> CpuMultigrid<T> {
             setup_seconds: t0.elapsed().as_secs_f64(),
             krylov: Krylov::new(mg.krylov),
             estimate: ErrorEstimate::default(),
-            frozen,
+            frozen: false,
             serial: rayon::ThreadPoolBuilder::new().num_threads(1).build().ok(),
-        })
+        };
+        if mg.coarse_d == CoarseD::Restricted {
+            solve.freeze_coarse_d();
+        }
+        Ok(solve)
     }
 
     /// Switches the coarse levels to [`CoarseD::Restricted`] (their smoothers stop updating
-    /// D; each visit sets it from the finer level) and restarts the Krylov history.
-    fn freeze_coarse_d(&mut self) {
+    /// D; each visit sets it from the finer level) and restarts the Krylov history. Returns
+    /// `false`, changing nothing, if they are frozen already or the limiter is constant (CDA's
+    /// D is fixed anyway).
+    fn freeze_coarse_d(&mut self) -> bool {
+        if self.frozen || self.config.limiter.is_constant() {
+            return false;
+        }
         self.frozen = true;
         for lv in self.levels.iter_mut().skip(1) {
             lv.fld.mg_freeze_d();
@@ -544,6 +560,7 @@ impl<T: Real> CpuMultigrid<T> {
         for v in self.krylov.clear() {
             self.give(0, v);
         }
+        true
     }
 
     fn level(fld: CpuFld<T>) -> Level<T> {
@@ -702,6 +719,15 @@ impl<T: Real> CpuMultigrid<T> {
         let phi_c = self.levels[l + 1].fld.mg_phi();
         let e: Vec<f64> = phi_c.par_iter().zip(&phi_c0).map(|(a, b)| a - b).collect();
         prolong_add(&fg, &cg, &e, &mut phi);
+        self.set_phi(l, phi);
+        for _ in 0..self.mg.post {
+            self.sweep(l);
+        }
+    }
+
+    /// Hands φ (natural layout, a pooled vector) to level `l`'s smoother with D recomputed
+    /// from it (FLD), and returns the vectors to the pool.
+    fn set_phi(&mut self, l: usize, phi: Vec<f64>) {
         let d = self.fresh_d(l, &phi);
         let fl = &mut self.levels[l].fld;
         fl.mg_set(0, &phi);
@@ -710,9 +736,6 @@ impl<T: Real> CpuMultigrid<T> {
         }
         self.give(l, phi);
         self.give(l, d);
-        for _ in 0..self.mg.post {
-            self.sweep(l);
-        }
     }
 
     /// Runs one cycle and returns R̄/j̄ after it.
@@ -724,15 +747,15 @@ impl<T: Real> CpuMultigrid<T> {
     /// trivial problem).
     /// [`CpuMultigrid::cycle_at`] level `l`, on one thread if the level is small.
     fn visit(&mut self, l: usize, kind: Cycle) {
-        if self.levels[l].grid.len() < SERIAL_VOXELS {
-            self.serially(|mg| mg.cycle_at(l, kind));
-        } else {
-            self.cycle_at(l, kind);
-        }
+        self.sized(l, |mg| mg.cycle_at(l, kind));
     }
 
-    /// Runs `f` inside the one-thread pool (inline when already inside it).
-    fn serially<R: Send>(&mut self, f: impl FnOnce(&mut Self) -> R + Send) -> R {
+    /// Runs `f` inside the one-thread pool if level `l` has fewer than `SERIAL_VOXELS`
+    /// voxels (inline when already inside that pool), else on the current pool.
+    fn sized<R: Send>(&mut self, l: usize, f: impl FnOnce(&mut Self) -> R + Send) -> R {
+        if self.levels[l].grid.len() >= SERIAL_VOXELS {
+            return f(self);
+        }
         match self.serial.take() {
             Some(pool) => {
                 let r = pool.install(|| f(self));
@@ -744,11 +767,7 @@ impl<T: Real> CpuMultigrid<T> {
     }
 
     fn cycle_estimate(&mut self) -> (f64, f64) {
-        if self.levels[0].grid.len() < SERIAL_VOXELS {
-            self.serially(|mg| mg.cycle_estimate_on())
-        } else {
-            self.cycle_estimate_on()
-        }
+        self.sized(0, |mg| mg.cycle_estimate_on())
     }
 
     /// [`CpuMultigrid::cycle_estimate`] on the current pool.
@@ -761,14 +780,7 @@ impl<T: Real> CpuMultigrid<T> {
         if self.krylov.ready() {
             let mut acc = self.take(0);
             self.krylov.combine(&mut acc);
-            let d = self.fresh_d(0, &acc);
-            let fl = &mut self.levels[0].fld;
-            fl.mg_set(0, &acc);
-            if let Some(d) = &d {
-                fl.mg_set(1, d);
-            }
-            self.give(0, acc);
-            self.give(0, d);
+            self.set_phi(0, acc);
         }
         self.cycle_at(0, self.mg.cycle);
         let mut phi = self.take(0);
@@ -847,10 +859,8 @@ impl<T: Real> CpuMultigrid<T> {
                 // [`CoarseD::Auto`]: a stalled FAS goes on with Picard coarse levels.
                 if stop == Stop::Stalled
                     && self.mg.coarse_d == CoarseD::Auto
-                    && !self.frozen
-                    && !self.config.limiter.is_constant()
+                    && self.freeze_coarse_d()
                 {
-                    self.freeze_coarse_d();
                     continue;
                 }
                 break stop;
@@ -917,8 +927,6 @@ struct Krylov {
     gram: Vec<Vec<f64>>,
     /// R̄/j̄ of the newest result.
     last: f64,
-    /// The slab length of the partial sums (deterministic reduction).
-    slab: usize,
 }
 
 impl Krylov {
@@ -928,6 +936,12 @@ impl Krylov {
             last: f64::INFINITY,
             ..Self::default()
         }
+    }
+
+    /// The length of the chunks whose partial sums are added in chunk order (a function of
+    /// the grid alone, so the sums are the same for any thread count).
+    fn chunk(len: usize) -> usize {
+        (len / 64).max(4096)
     }
 
     /// Whether there are at least two results to combine.
@@ -945,8 +959,7 @@ impl Krylov {
     /// Records a cycle result; returns vectors no longer needed.
     fn push(&mut self, phi: Vec<f64>, r: Vec<f64>, res: f64) -> Vec<Vec<f64>> {
         let mut spare = Vec::new();
-        let grew = res.is_nan() || res >= RESTART_GROWTH * self.last;
-        if grew || !res.is_finite() {
+        if !res.is_finite() || res >= RESTART_GROWTH * self.last {
             // A restart: the last combination did not help (or the cycle diverged).
             spare = self.clear();
         }
@@ -961,11 +974,8 @@ impl Krylov {
             }
         }
         self.last = res;
-        if self.slab == 0 {
-            self.slab = (r.len() / 64).max(4096);
-        }
         let k = self.history.len();
-        let slab = self.slab;
+        let slab = Self::chunk(r.len());
         let partial: Vec<Vec<f64>> = r
             .par_chunks(slab)
             .enumerate()
@@ -1011,7 +1021,7 @@ impl Krylov {
         }
         let alpha = solve_small(a).unwrap_or_else(|| vec![0.0; m]);
         let w0 = 1.0 - alpha.iter().sum::<f64>();
-        let slab = self.slab;
+        let slab = Self::chunk(out.len());
         out.par_chunks_mut(slab).enumerate().for_each(|(c, oc)| {
             let (lo, len) = (c * slab, oc.len());
             let newest = &self.history[m].0[lo..lo + len];
