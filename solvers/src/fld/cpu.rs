@@ -132,41 +132,57 @@ impl<T: Real> CpuFld<T> {
         let d0 = T::c(eps * dl);
 
         let h = packed_row_len(nx);
-        let plen = nz * ny * h;
-        let mut sig = [vec![T::one(); plen], vec![T::one(); plen]];
-        let mut absorb = [vec![T::zero(); plen], vec![T::zero(); plen]];
-        let mut src = [vec![T::zero(); plen], vec![T::zero(); plen]];
-        let mut phi = [vec![phi0; plen], vec![phi0; plen]];
-        let mut d = [vec![d0; plen], vec![d0; plen]];
-        let mut vac = [vec![T::zero(); plen], vec![T::zero(); plen]];
+        let slab = ny * h;
+        let plen = nz * slab;
+        // Zeroed (untouched pages) here, every value written below in parallel over z-slabs
+        // (the serial fill it replaces: 0.50 → 0.30 s at 255³, `multigrid` module docs).
+        let zeros = || [vec![T::zero(); plen], vec![T::zero(); plen]];
+        let (mut sig, mut absorb, mut src) = (zeros(), zeros(), zeros());
+        let (mut phi, mut d, mut vac) = (zeros(), zeros(), zeros());
         let cda = config.limiter.is_constant();
         let third = T::one() / T::c(3.0);
-        for k in 0..nz {
+        // Per slab k: [σ, absorption, source, φ, D, vacuum] × [red, black].
+        let mut slabs: Vec<Vec<&mut [T]>> = (0..nz).map(|_| Vec::with_capacity(12)).collect();
+        for field in [&mut sig, &mut absorb, &mut src, &mut phi, &mut d, &mut vac] {
+            for colour in field.iter_mut() {
+                for (k, chunk) in colour.chunks_mut(slab).enumerate() {
+                    slabs[k].push(chunk);
+                }
+            }
+        }
+        slabs.into_par_iter().enumerate().for_each(|(k, mut f)| {
+            // Defaults, also of the slots past a row's last voxel (never a voxel's value).
+            for c in 0..2 {
+                f[c].fill(T::one());
+                f[6 + c].fill(phi0);
+                f[8 + c].fill(d0);
+            }
             for j in 0..ny {
                 for i in 0..nx {
                     let n = grid.index(i, j, k);
                     let (c, p) = packed_index(&grid, h, i, j, k);
+                    let p = p - k * slab;
                     let st = medium.sigma_t[n].f().max(sigma_eps);
                     let a = medium.albedo[n].f();
                     let ks = match config.knudsen {
                         KnudsenSigma::Extinction => st,
                         KnudsenSigma::EffectiveAlbedo => (a * medium.sigma_t[n].f()).max(sigma_eps),
                     };
-                    sig[c][p] = T::c(ks);
+                    f[c][p] = T::c(ks);
                     if medium.sigma_t[n].f() <= sigma_eps {
-                        vac[c][p] = T::one();
+                        f[10 + c][p] = T::one();
                     }
-                    absorb[c][p] = T::c((1.0 - a) * st * dl * dl);
-                    src[c][p] = T::c(medium.emission[n].f() / scale * dl * dl);
+                    f[2 + c][p] = T::c((1.0 - a) * st * dl * dl);
+                    f[4 + c][p] = T::c(medium.emission[n].f() / scale * dl * dl);
                     if cda {
-                        d[c][p] = third / T::c(ks);
+                        f[8 + c][p] = third / T::c(ks);
                     }
                     if let (Boundary::Values(v), true) = (boundary, grid.is_boundary(i, j, k)) {
-                        phi[c][p] = T::c(v[n].f() / scale);
+                        f[6 + c][p] = T::c(v[n].f() / scale);
                     }
                 }
             }
-        }
+        });
         let window = ResidualWindow::new(&grid, config.residual_margin);
         let tolerance = config.tolerance.unwrap_or(T::DEFAULT_TOLERANCE);
         let omega = T::c(config.omega);
@@ -301,9 +317,9 @@ impl<T: Real> CpuFld<T> {
         self.config.limiter = FluxLimiter::Cda;
     }
 
-    /// φ, D, σ and the absorption (1 − α)σΔl² in natural layout and normalised units.
-    pub(super) fn mg_fields(&self) -> [Vec<f64>; 4] {
-        [&self.phi, &self.d, &self.sig, &self.absorb].map(|f| self.unpack_f64(f, 1.0))
+    /// σ and the absorption (1 − α)σΔl² in natural layout and normalised units.
+    pub(super) fn mg_fields(&self) -> [Vec<f64>; 2] {
+        [&self.sig, &self.absorb].map(|f| self.unpack_f64(f, 1.0))
     }
 
     /// φ alone (natural layout, normalised units): the one field a cycle reads back per visit.

@@ -209,6 +209,29 @@
 //!   0.028/0.025, 0.030/0.023, 0.022/0.021, 0.010/0.018, shell_core 2.89/0.078. Multigrid is
 //!   therefore not faster everywhere it converges (small CDA grids), and SOR stays the
 //!   default solver (issue 15 item 4).
+//! * **Issue 15's acceptance 3 at 255³, and what is left to try (2026-12-06, same 2-vCPU AMD
+//!   EPYC 7002, quiet, one run: `point_source --n 255 --boundary zero --tolerance 1e-6
+//!   --solver sor,multigrid --limiter cda,lp --albedo 0.5,0.99`, solve seconds without
+//!   setup).** SOR vs multigrid: CDA α = 0.5 551 iterations 20.6 s vs 5 cycles 2.88 s (7.2×),
+//!   α = 0.99 566 it. 21.0 s vs 5 cycles 2.75 s (7.6×); FLD-LP α = 0.5 2102 it. 271 s vs 13
+//!   cycles 18.6 s (14.6×), α = 0.99 4049 it. 508 s vs 11 cycles 15.9 s (32×); relative L2 to
+//!   SOR 0.8–4.3·10⁻⁶. FLD-LP is ≥ 10× at 255³, CDA is not at either size. At 127³ CDA cannot
+//!   be: SOR's 277 sweeps against the multigrid's 26.1 work units cap the ratio at 10.6× for a
+//!   cycle that cost nothing but its smoothing sweeps, and the cycle's own passes over the fine
+//!   grid (the Krylov combination and history, packing φ into the smoother and out, two
+//!   residuals, two restrictions, the prolongation, the error estimate: about 1.3 times the
+//!   bytes of its four sweeps, `perf` of the 255³ CDA solve: smoothing 26 % of the samples,
+//!   restrictions 10 %, residuals 9 %) are not free. Setup is not in these seconds; it now
+//!   fills the fine level's packed fields in parallel over z-slabs and unpacks only σ and
+//!   the absorption back (φ and D were unpacked and dropped): `CpuMultigrid::new` on the
+//!   Fig 4 cloud, best of 3, 127³ CDA 0.109 → 0.085 s, FLD-LP 0.103 → 0.076 s; 255³ 1.15 →
+//!   0.87 s and 0.97 → 0.81 s (`CpuFld::new` alone at 255³: 0.50 → 0.30 s CDA); the
+//!   cycles' residuals are bit-identical. F(2, 1) instead of F(2, 2) (n = 31, 63, 127,
+//!   Krylov depth 3): point source FLD-LP the same 9, 10, 11 cycles and 2.33 → 2.04 s at
+//!   127³, but point source CDA 5 → 6 cycles (0.41 → 0.42 s), Fig 4 cloud CDA 10, 12, 14 →
+//!   11, 14, 16 (1.01 → 1.09 s) and FLD-LP 14, 21, 54 → 16, 24, 80 (11.3 → 12.4 s); F(3, 3)
+//!   and F(1, 1) on the FLD-LP point source: 8, 9, 10 cycles (2.64 s) and 10, 11, 15 (2.39 s).
+//!   F(2, 2) stays.
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; at n = 127 with V cycles, 84 of
 //!   108 were Picard cycles after the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
@@ -564,7 +587,7 @@ impl<T: Real> CpuMultigrid<T> {
     }
 
     fn level(fld: CpuFld<T>) -> Level<T> {
-        let [_, _, sig, absorb] = fld.mg_fields();
+        let [sig, absorb] = fld.mg_fields();
         Level {
             grid: *fld.grid(),
             rhs: fld.mg_rhs(),
