@@ -116,7 +116,13 @@
 //!   byte-identical; the same command, one run: CDA multigrid 0.434 s (α = 0.5) and 0.449 s
 //!   (0.99) against SOR 1.27 and 1.20 s (2.9×, 2.7×), FLD-LP 2.89 and 2.95 s against 8.67
 //!   and 17.70 s (3.0×, 6.0×). `memset` is gone from the profile; page clearing is down to
-//!   8 % of the samples, most of it the setup's first touch of its fields.
+//!   8 % of the samples, most of it the setup's first touch of its fields. The coarse
+//!   vectors of a visit (R̂φ, the restricted residual and right-hand side, the copy of R̂φ,
+//!   the correction) and the restriction's scratch planes were still fresh allocations:
+//!   pooled too (2026-12-06), the 255³ point source CDA solve took 437 000 instead of
+//!   495 000 page faults (most of the rest is the Krylov history's first touch, 8 fine
+//!   vectors) and 2.72–2.79 s instead of 2.82–2.85 s (three runs each, alternating); the
+//!   residuals are bit-identical.
 //! * **Full multigrid start: tried and rejected (2026-12-06, a build not kept).** Nested
 //!   iteration (each level's own problem with f_l = R f_{l−1}, solved from the coarsest up, one
 //!   V(2,2) per level, as the first cycle) cut the first cycle's R̄/j̄ only from 2.7–2.8·10⁻²
@@ -236,7 +242,8 @@
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; at n = 127 with V cycles, 84 of
 //!   108 were Picard cycles after the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
 //!   holds for CDA on the point source only. On small vacuum clouds SOR is faster (CDA n =
-//!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`). A CDA work unit of multigrid costs about 3.9 SOR sweeps of
+//!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`; `multigrid_scaling` with SOR up
+//!   to n = 127: CDA on the cloud 0.4×, 0.7×, 1.6× at n = 31, 63, 127). A CDA work unit of multigrid costs about 3.9 SOR sweeps of
 //!   wall time (127³, α = 0.5: 0.40 s / 26.1 work units against SOR's 1.09 s / 277 sweeps;
 //!   transfers, residuals, packing), so the ≥ 10× of issue 15 is not met at 127³.
 //!   FLD-LP on white noise with 95 % vacuum still stalls in f32 (the GPU test). shell_core
@@ -708,7 +715,8 @@ impl<T: Real> CpuMultigrid<T> {
             c.d_fixed = Some(dc);
         }
         self.give(l, d);
-        let phi_c0 = restrict_mean(&fg, &cg, &phi);
+        let mut phi_c0 = self.take(l + 1);
+        restrict_mean_into(&fg, &cg, &phi, &mut phi_c0);
         // `None` for a constant limiter: the coarse D is fixed and already in place.
         let d_c = self.fresh_d(l + 1, &phi_c0);
         let mut lc = self.take(l + 1);
@@ -720,28 +728,34 @@ impl<T: Real> CpuMultigrid<T> {
             None,
             &mut lc,
         );
-        let rc = restrict_fw(&fg, &cg, &r);
+        let mut fc = self.take(l + 1);
+        restrict_fw_into(&fg, &cg, &r, &mut fc);
         self.give(l, r);
-        let fc: Vec<f64> = rc.par_iter().zip(&lc).map(|(a, b)| a + b).collect();
+        fc.par_iter_mut().zip(&lc).for_each(|(a, b)| *a += b);
         self.give(l + 1, lc);
-        {
+        let old_rhs = {
             let c = &mut self.levels[l + 1];
             c.fld.mg_set(0, &phi_c0);
             if let Some(d_c) = &d_c {
                 c.fld.mg_set(1, d_c);
             }
             c.fld.mg_set(2, &fc);
-            c.rhs = fc;
-            c.base = phi_c0.clone();
-        }
+            c.base.clone_from(&phi_c0);
+            std::mem::replace(&mut c.rhs, fc)
+        };
+        self.give(l + 1, old_rhs);
         self.give(l + 1, d_c);
         self.visit(l + 1, kind);
         if kind == Cycle::F {
             self.visit(l + 1, Cycle::V);
         }
-        let phi_c = self.levels[l + 1].fld.mg_phi();
-        let e: Vec<f64> = phi_c.par_iter().zip(&phi_c0).map(|(a, b)| a - b).collect();
+        // The correction e = φ_c − R̂φ, in the vector that held φ_c.
+        let mut e = self.take(l + 1);
+        self.levels[l + 1].fld.mg_phi_into(&mut e);
+        e.par_iter_mut().zip(&phi_c0).for_each(|(a, b)| *a -= b);
         prolong_add(&fg, &cg, &e, &mut phi);
+        self.give(l + 1, e);
+        self.give(l + 1, phi_c0);
         self.set_phi(l, phi);
         for _ in 0..self.mg.post {
             self.sweep(l);
@@ -1441,9 +1455,16 @@ fn restrict_medium(
 /// Coarse interior values as `Axis::mean` (tensor product); the coarse Dirichlet layer
 /// copies the nearest fine layer voxel.
 fn restrict_mean(g: &Grid, cg: &Grid, v: &[f64]) -> Vec<f64> {
+    let mut out = Vec::new();
+    restrict_mean_into(g, cg, v, &mut out);
+    out
+}
+
+/// [`restrict_mean`] into `out` (resized to the coarse grid; every value is overwritten).
+fn restrict_mean_into(g: &Grid, cg: &Grid, v: &[f64], out: &mut Vec<f64>) {
     let ax = axes(g);
     let tables = axis_tables(cg.n, |d, c| interior_only(cg, d, c, || ax[d].mean(c)));
-    let mut out = restrict_separable(g, cg, v, &tables, 1.0);
+    restrict_separable(g, cg, v, &tables, 1.0, out);
     let (cnx, cny) = (cg.n[0], cg.n[1]);
     out.par_chunks_mut(cnx * cny)
         .enumerate()
@@ -1467,15 +1488,14 @@ fn restrict_mean(g: &Grid, cg: &Grid, v: &[f64]) -> Vec<f64> {
                 }
             }
         });
-    out
 }
 
 /// Residual restriction: the adjoint of [`prolong_add`] over 8 (full weighting: ¼, ½, ¼ per
 /// vertex axis, (1, 3, 3, 1)/8 per cell axis); the fine residual is 0 on the layer.
-fn restrict_fw(g: &Grid, cg: &Grid, r: &[f64]) -> Vec<f64> {
+fn restrict_fw_into(g: &Grid, cg: &Grid, r: &[f64], out: &mut Vec<f64>) {
     let ax = axes(g);
     let tables = axis_tables(cg.n, |d, c| interior_only(cg, d, c, || ax[d].restrict(c)));
-    restrict_separable(g, cg, r, &tables, 0.125)
+    restrict_separable(g, cg, r, &tables, 0.125, out);
 }
 
 /// `scale` × the tensor-product restriction of `v` with the per-axis gather `tables` (coarse
@@ -1490,19 +1510,24 @@ fn restrict_separable(
     v: &[f64],
     tables: &[Vec<Vec<(usize, f64)>>; 3],
     scale: f64,
-) -> Vec<f64> {
+    out: &mut Vec<f64>,
+) {
     let [nx, ny, _] = g.n;
     let [cnx, cny, _] = cg.n;
     let [tx, ty, tz] = tables;
-    let mut out = vec![0.0; cg.len()];
-    out.par_chunks_mut(cnx * cny)
-        .enumerate()
-        .for_each(|(kc, slab)| {
+    out.clear();
+    out.resize(cg.len(), 0.0);
+    // Scratch planes per rayon job, not per slab: fresh allocations of a plane per slab
+    // faulted their pages in on every visit (see the module docs, "pooled").
+    out.par_chunks_mut(cnx * cny).enumerate().for_each_init(
+        || (Vec::new(), Vec::new()),
+        |(zp, xp): &mut (Vec<f64>, Vec<f64>), (kc, slab)| {
             if tz[kc].is_empty() {
                 return;
             }
             // z: the fine plane combined over this coarse slab's fine slabs.
-            let mut zp = vec![0.0; nx * ny];
+            zp.clear();
+            zp.resize(nx * ny, 0.0);
             for &(k, a) in &tz[kc] {
                 let src = &v[g.index(0, 0, k)..g.index(0, 0, k) + nx * ny];
                 for (o, &x) in zp.iter_mut().zip(src) {
@@ -1510,7 +1535,8 @@ fn restrict_separable(
                 }
             }
             // x: per fine row, the coarse row.
-            let mut xp = vec![0.0; cnx * ny];
+            xp.clear();
+            xp.resize(cnx * ny, 0.0);
             for j in 0..ny {
                 let row = &zp[j * nx..(j + 1) * nx];
                 for (ic, o) in xp[j * cnx..(j + 1) * cnx].iter_mut().enumerate() {
@@ -1530,8 +1556,8 @@ fn restrict_separable(
                     }
                 }
             }
-        });
-    out
+        },
+    );
 }
 
 /// φ += the interpolated coarse correction (zero on the coarse Dirichlet layer),
