@@ -186,6 +186,27 @@
 //!   them into scalar code: CDA f32 205 ms), a row tail padded through a second, non-inlined
 //!   call (its per-call alias checks cost more than the tail: CDA f32 45 ms), and writing each
 //!   row to padded buffers (no gain once (1) was found).
+//!   **Where the rest of FLD-LP's time goes (2026-12-06, same machine, an ad-hoc example timing
+//!   `CpuFld::iterate` at 256³ on the vacuum cloud, median of 9, builds not kept).** Two
+//!   divisions per voxel removed (LP's 1/R and F/σ replaced by products, wrong numbers, timing
+//!   only): f32 65.7 → 66.3 ms, f64 112.0 → 111.7 ms, so the sweep is not bound by the divider.
+//!   Skipping the boundary layer's two x-end voxels per row (2 % of the voxels): 66.4 → 58.7
+//!   ms, so those scattered gathers (each reads seven cache lines in five rows) are 12 % of the
+//!   iteration, while the four full faces cost nothing measurable. They are now folded into
+//!   the row passes (`CpuFld::x_ends_in_pass`, where it is argued exact: an end's only
+//!   non-constant input is the interior voxel next to it in the same row): φ, D and the
+//!   residual history are bit-identical (hashes after 30 iterations, every limiter including
+//!   Larsen-3, paper and Marshak faces, θ = 0.7, f32 and f64, 40×33×37, 3×9×8 and 4×5×6
+//!   random media with 20 % vacuum, and 12 multigrid cycles on the 48³ cloud), and the same
+//!   example measures 256³ f32 66.0–68.3 → 62.1–62.2 ms, f64 113.7–115.4 → 110.3–112.0 ms,
+//!   128³ f32 11.6 → 10.7 ms. `cargo bench -p benches --bench diffusion` afterwards
+//!   (`results/bench/diffusion_cpu.csv`): FLD-LP 256³ f32 63.5 ms (0.24 of a 39.3 GB/s
+//!   triad), f64 111.6 ms (0.27 of 40.8 GB/s); CDA f32 20.2 ms is 0.57 of that run's 40.8
+//!   GB/s triad (0.63 of the 37.3 GB/s of the run before: the probe, not the sweep, moved;
+//!   a 256³-only rerun gave 0.565 at 41.1 GB/s), CDA f64 0.78. Padding each run to whole 8-voxel vectors (the padding lanes
+//!   masked out of every store) was slower, 65.5 → 68.6–74.2 ms f32: LLVM's vectorised loop
+//!   keeps a scalar remainder of 1–8 iterations whatever the trip count (it cannot prove the
+//!   cut slices as long as the run), so a run of 128 left 8 scalar voxels where 127 left 7.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
