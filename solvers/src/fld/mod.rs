@@ -203,7 +203,12 @@
 //!   (`results/bench/diffusion_cpu.csv`): FLD-LP 256³ f32 63.5 ms (0.24 of a 39.3 GB/s
 //!   triad), f64 111.6 ms (0.27 of 40.8 GB/s); CDA f32 20.2 ms is 0.57 of that run's 40.8
 //!   GB/s triad (0.63 of the 37.3 GB/s of the run before: the probe, not the sweep, moved;
-//!   a 256³-only rerun gave 0.565 at 41.1 GB/s), CDA f64 0.78. Padding each run to whole 8-voxel vectors (the padding lanes
+//!   a 256³-only rerun gave 0.565 at 41.1 GB/s), CDA f64 0.78. A third full run ten minutes
+//!   later (not committed) met a 29–30 GB/s triad with the same sweep times (CDA f32 256³
+//!   20.2 ms, FLD-LP 61.6 ms f32 and 110.0 ms f64): 0.80, 0.33 and 0.38 of it. This shared
+//!   machine's triad moves by a third within minutes while the sweeps do not move at all, so
+//!   neither sweep is bound by DRAM bandwidth here, and a single run's ratio says more about
+//!   the probe than about the sweep. Padding each run to whole 8-voxel vectors (the padding lanes
 //!   masked out of every store) was slower, 65.5 → 68.6–74.2 ms f32: LLVM's vectorised loop
 //!   keeps a scalar remainder of 1–8 iterations whatever the trip count (it cannot prove the
 //!   cut slices as long as the run), so a run of 128 left 8 scalar voxels where 127 left 7.
