@@ -681,88 +681,102 @@ impl<T: Real> CpuFld<T> {
         let (sig, absorb, src) = (&self.sig[c], &self.absorb[c], &self.src[c]);
         let (vac_c, vac_o) = (&self.vac[c], &self.vac[1 - c]);
         let limiter = &limiter;
+        // At least four tasks per thread (load balance on many cores), at most SLAB_GROUP slabs.
+        let group = (nz / (4 * rayon::current_num_threads())).clamp(1, SLAB_GROUP);
         let partial: Vec<f64> = phi_c
-            .par_chunks_mut(slab)
-            .zip(d_c.par_chunks_mut(slab))
-            .zip(self.black_x_ends_prev.par_chunks_mut(2 * ny))
+            .par_chunks_mut(slab * group)
+            .zip(d_c.par_chunks_mut(slab * group))
+            .zip(self.black_x_ends_prev.par_chunks_mut(2 * ny * group))
             .enumerate()
-            .map(|(k, ((phi_slab, d_slab), prev))| {
-                if k == 0 || k + 1 == nz {
-                    return 0.0;
-                }
-                let mut acc = T::zero();
+            .flat_map_iter(|(t, ((phi_group, d_group), prev_group))| {
+                let slabs = phi_group.len() / slab;
+                let mut sums = vec![T::zero(); slabs];
                 let mut scratch = vec![T::zero(); h];
-                for j in 1..ny - 1 {
-                    let s = (c + j + k) & 1;
-                    let row = j * h;
-                    let g = (k * ny + j) * h;
-                    let rows = Rows::around(phi_o, g, h, slab);
-                    let drows = Rows::around(d_o, g, h, slab);
-                    let vrows = Rows::around(vac_o, g, h, slab);
-                    let counted_row = window.counts_row(j, k);
-                    // Interior i = 2m + s ∈ [1, nx − 2].
-                    let m_lo = 1 - s;
-                    let m_hi = (nx - 2 - s) / 2;
-                    // Counted i ∈ [lo, hi_x] ⇒ m ∈ [⌈(lo − s)/2⌉, ⌊(hi_x − s)/2⌋].
-                    let (cm_lo, cm_hi) = if counted_row && hi[0] + 1 > lo {
-                        ((lo - s).div_ceil(2), (hi[0] - s) / 2 + 1)
-                    } else {
-                        (0, 0)
-                    };
-                    acc = acc
-                        + update_row::<T, FLD, M, L>(
-                            &mut phi_slab[row..row + h],
-                            &mut d_slab[row..row + h],
-                            &sig[g..g + h],
-                            &absorb[g..g + h],
-                            &src[g..g + h],
-                            &vac_c[g..g + h],
-                            &rows,
-                            &drows,
-                            &vrows,
-                            s,
-                            m_lo..m_hi + 1,
-                            cm_lo..cm_hi,
-                            &p,
-                            limiter,
-                            &mut scratch,
-                        );
-                    if x_ends {
-                        // This colour's x-end voxels of the row (`x_ends_in_pass`) with the
-                        // arithmetic of `update_boundary_d`: a one-sided x difference to
-                        // the interior neighbour, central y and z (their ×1 dropped: exact).
-                        let two = T::c(2.0);
-                        // (m, whether it is the left end i = 0), where that end has colour c.
-                        let left = (s == 0).then_some((0, true));
-                        let right = ((nx - 1 - s) % 2 == 0).then_some(((nx - 1 - s) / 2, false));
-                        for (m, is_left) in [left, right].into_iter().flatten() {
-                            // The interior neighbour i = 1 or nx − 2 (the other colour).
-                            let n_phi = if is_left {
-                                rows.x[0]
+                // Blocks of rows across the group's slabs (see `SLAB_GROUP`); each slab's
+                // rows are still visited in ascending j, so its sum is the same.
+                for j0 in (1..ny - 1).step_by(ROW_BLOCK) {
+                    for (kk, acc) in sums.iter_mut().enumerate() {
+                        let k = t * group + kk;
+                        if k == 0 || k + 1 == nz {
+                            continue;
+                        }
+                        let phi_slab = &mut phi_group[kk * slab..(kk + 1) * slab];
+                        let d_slab = &mut d_group[kk * slab..(kk + 1) * slab];
+                        let prev = &mut prev_group[kk * 2 * ny..(kk + 1) * 2 * ny];
+                        for j in j0..(j0 + ROW_BLOCK).min(ny - 1) {
+                            let s = (c + j + k) & 1;
+                            let row = j * h;
+                            let g = (k * ny + j) * h;
+                            let rows = Rows::around(phi_o, g, h, slab);
+                            let drows = Rows::around(d_o, g, h, slab);
+                            let vrows = Rows::around(vac_o, g, h, slab);
+                            let counted_row = window.counts_row(j, k);
+                            // Interior i = 2m + s ∈ [1, nx − 2].
+                            let m_lo = 1 - s;
+                            let m_hi = (nx - 2 - s) / 2;
+                            // Counted i ∈ [lo, hi_x] ⇒ m ∈ [⌈(lo − s)/2⌉, ⌊(hi_x − s)/2⌋].
+                            let (cm_lo, cm_hi) = if counted_row && hi[0] + 1 > lo {
+                                ((lo - s).div_ceil(2), (hi[0] - s) / 2 + 1)
                             } else {
-                                rows.x[m + s - 1]
+                                (0, 0)
                             };
-                            let x_phi = phi_slab[row + m];
-                            let gx = if is_left {
-                                n_phi - x_phi
-                            } else {
-                                x_phi - n_phi
-                            } * p.inv_2dl
-                                * two;
-                            let gy = (rows.yp[m] - rows.ym[m]) * p.inv_2dl;
-                            let gz = (rows.zp[m] - rows.zm[m]) * p.inv_2dl;
-                            let sx = sig[g + m];
-                            let r = (gx * gx + gy * gy + gz * gz).sqrt().max(p.floor)
-                                / (sx * x_phi).max(p.floor);
-                            let d = &mut d_slab[row + m];
-                            if c == 1 {
-                                prev[2 * j + usize::from(!is_left)] = *d;
+                            *acc = *acc
+                                + update_row::<T, FLD, M, L>(
+                                    &mut phi_slab[row..row + h],
+                                    &mut d_slab[row..row + h],
+                                    &sig[g..g + h],
+                                    &absorb[g..g + h],
+                                    &src[g..g + h],
+                                    &vac_c[g..g + h],
+                                    &rows,
+                                    &drows,
+                                    &vrows,
+                                    s,
+                                    m_lo..m_hi + 1,
+                                    cm_lo..cm_hi,
+                                    &p,
+                                    limiter,
+                                    &mut scratch,
+                                );
+                            if x_ends {
+                                // This colour's x-end voxels of the row (`x_ends_in_pass`) with the
+                                // arithmetic of `update_boundary_d`: a one-sided x difference to
+                                // the interior neighbour, central y and z (their ×1 dropped: exact).
+                                let two = T::c(2.0);
+                                // (m, whether it is the left end i = 0), where that end has colour c.
+                                let left = (s == 0).then_some((0, true));
+                                let right =
+                                    ((nx - 1 - s) % 2 == 0).then_some(((nx - 1 - s) / 2, false));
+                                for (m, is_left) in [left, right].into_iter().flatten() {
+                                    // The interior neighbour i = 1 or nx − 2 (the other colour).
+                                    let n_phi = if is_left {
+                                        rows.x[0]
+                                    } else {
+                                        rows.x[m + s - 1]
+                                    };
+                                    let x_phi = phi_slab[row + m];
+                                    let gx = if is_left {
+                                        n_phi - x_phi
+                                    } else {
+                                        x_phi - n_phi
+                                    } * p.inv_2dl
+                                        * two;
+                                    let gy = (rows.yp[m] - rows.ym[m]) * p.inv_2dl;
+                                    let gz = (rows.zp[m] - rows.zm[m]) * p.inv_2dl;
+                                    let sx = sig[g + m];
+                                    let r = (gx * gx + gy * gy + gz * gz).sqrt().max(p.floor)
+                                        / (sx * x_phi).max(p.floor);
+                                    let d = &mut d_slab[row + m];
+                                    if c == 1 {
+                                        prev[2 * j + usize::from(!is_left)] = *d;
+                                    }
+                                    *d = p.theta * (limiter(r) / sx) + p.one_minus_theta * *d;
+                                }
                             }
-                            *d = p.theta * (limiter(r) / sx) + p.one_minus_theta * *d;
                         }
                     }
                 }
-                acc.f()
+                sums.into_iter().map(|a| a.f())
             })
             .collect();
         // Summed in slab order so the result does not depend on the thread count.
@@ -968,6 +982,14 @@ fn update_row<T: Real, const FLD: bool, const M: bool, L: Fn(T) -> T>(
     }
     lanes.iter().chain(tail).fold(T::zero(), |a, &b| a + b)
 }
+
+/// Slabs per parallel task of a colour pass, and rows per block within it: the pass walks
+/// a task's slabs block of rows by block of rows, so the z-neighbour rows a slab reads
+/// (its neighbour slabs' rows of the same block) are still in the core's cache from the
+/// slab before.
+const SLAB_GROUP: usize = 8;
+/// See [`SLAB_GROUP`].
+const ROW_BLOCK: usize = 32;
 
 /// The packed row length: ⌈nx/2⌉, plus one unused slot where that is even. With a row
 /// length of a power of two the z-neighbour rows of a voxel (a slab apart: ny·h values) fall

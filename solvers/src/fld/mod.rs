@@ -208,7 +208,21 @@
 //!   20.2 ms, FLD-LP 61.6 ms f32 and 110.0 ms f64): 0.80, 0.33 and 0.38 of it. This shared
 //!   machine's triad moves by a third within minutes while the sweeps do not move at all, so
 //!   neither sweep is bound by DRAM bandwidth here, and a single run's ratio says more about
-//!   the probe than about the sweep. Padding each run to whole 8-voxel vectors (the padding lanes
+//!   the probe than about the sweep.
+//!   **Row blocks across slabs (`SLAB_GROUP`, `ROW_BLOCK` in `cpu.rs`; 2026-12-06).** A
+//!   colour pass used to take one z-slab per task, row after row: by the time a slab needs
+//!   its z-neighbours' rows (the slabs before and after, 4 arrays of 132 KB each at 256³
+//!   f32), they have left the 512 KB L2. Each task now takes up to 8 consecutive slabs (at
+//!   least 4 tasks per thread) and walks them 32 rows at a time, each slab's rows still in
+//!   ascending order, so its residual sum, φ, D and the residual history are bit-identical
+//!   (the hashes of the previous bullet, all 36 cases and the multigrid). Same ad-hoc
+//!   example, ms per iteration before → after: CDA f32 256³ 19.7 → 17.4, 128³ 3.30 → 2.63,
+//!   64³ 0.66 → 0.48; CDA f64 256³ 28.5 → 28.1, 128³ 4.32 → 3.82; FLD-LP f32 256³ 62.4 →
+//!   59.5, 128³ 10.5 → 10.0; FLD-LP f64 256³ 110.8 → 107.4. The bench afterwards (the
+//!   committed `results/bench/diffusion_cpu.csv`, whose triad probes swung between 42 and 30
+//!   GB/s within the run): 256³ CDA f32 16.9 ms (0.66 of 42.3 GB/s), FLD-LP f32 58.4 ms (0.33
+//!   of 31.4 GB/s), f64 105.8 ms (0.37 of 30.9 GB/s); its 64³ FLD-LP rows (1.9 and 4.0 ms)
+//!   are noisy: a 64³-only rerun gave 2.2 and 2.6 ms. Padding each run to whole 8-voxel vectors (the padding lanes
 //!   masked out of every store) was slower, 65.5 → 68.6–74.2 ms f32: LLVM's vectorised loop
 //!   keeps a scalar remainder of 1–8 iterations whatever the trip count (it cannot prove the
 //!   cut slices as long as the run), so a run of 128 left 8 scalar voxels where 127 left 7.
