@@ -739,39 +739,17 @@ impl<T: Real> CpuFld<T> {
                                     &mut scratch,
                                 );
                             if x_ends {
-                                // This colour's x-end voxels of the row (`x_ends_in_pass`) with the
-                                // arithmetic of `update_boundary_d`: a one-sided x difference to
-                                // the interior neighbour, central y and z (their ×1 dropped: exact).
-                                let two = T::c(2.0);
-                                // (m, whether it is the left end i = 0), where that end has colour c.
-                                let left = (s == 0).then_some((0, true));
-                                let right =
-                                    ((nx - 1 - s) % 2 == 0).then_some(((nx - 1 - s) / 2, false));
-                                for (m, is_left) in [left, right].into_iter().flatten() {
-                                    // The interior neighbour i = 1 or nx − 2 (the other colour).
-                                    let n_phi = if is_left {
-                                        rows.x[0]
-                                    } else {
-                                        rows.x[m + s - 1]
-                                    };
-                                    let x_phi = phi_slab[row + m];
-                                    let gx = if is_left {
-                                        n_phi - x_phi
-                                    } else {
-                                        x_phi - n_phi
-                                    } * p.inv_2dl
-                                        * two;
-                                    let gy = (rows.yp[m] - rows.ym[m]) * p.inv_2dl;
-                                    let gz = (rows.zp[m] - rows.zm[m]) * p.inv_2dl;
-                                    let sx = sig[g + m];
-                                    let r = (gx * gx + gy * gy + gz * gz).sqrt().max(p.floor)
-                                        / (sx * x_phi).max(p.floor);
-                                    let d = &mut d_slab[row + m];
-                                    if c == 1 {
-                                        prev[2 * j + usize::from(!is_left)] = *d;
-                                    }
-                                    *d = p.theta * (limiter(r) / sx) + p.one_minus_theta * *d;
-                                }
+                                update_x_ends(
+                                    nx,
+                                    s,
+                                    &phi_slab[row..row + h],
+                                    &mut d_slab[row..row + h],
+                                    &sig[g..g + h],
+                                    &rows,
+                                    (c == 1).then_some(&mut prev[2 * j..2 * j + 2]),
+                                    &p,
+                                    limiter,
+                                );
                             }
                         }
                     }
@@ -812,8 +790,7 @@ impl<T: Real> BoundaryBatch<T> {
         self.d.push(d);
     }
 
-    /// D ← θ F(R)/σ + (1 − θ) D with R = max(|∇φ|, floor)/max(σφ, floor) (FLD Eqs 33–35),
-    /// over equal-length slices so the loop vectorises.
+    /// [`relaxed_d`] over equal-length slices, so the loop vectorises.
     fn compute<L: Fn(T) -> T>(&mut self, p: &Params<T>, lim: &L) {
         let n = self.d.len();
         let (grad2, sphi, sig, d) = (
@@ -823,8 +800,7 @@ impl<T: Real> BoundaryBatch<T> {
             &mut self.d[..n],
         );
         for q in 0..n {
-            let r = grad2[q].sqrt().max(p.floor) / sphi[q].max(p.floor);
-            d[q] = p.theta * (lim(r) / sig[q]) + p.one_minus_theta * d[q];
+            d[q] = relaxed_d(p, lim, grad2[q], sphi[q], sig[q], d[q]);
         }
     }
 }
@@ -917,9 +893,8 @@ fn update_row<T: Real, const FLD: bool, const M: bool, L: Fn(T) -> T>(
             let gx = (pxr[q] - pxl[q]) * p.inv_2dl;
             let gy = (pyp[q] - pym[q]) * p.inv_2dl;
             let gz = (pzp[q] - pzm[q]) * p.inv_2dl;
-            let gnorm = (gx * gx + gy * gy + gz * gz).sqrt();
-            let r = gnorm.max(p.floor) / (sig[q] * phi[q]).max(p.floor);
-            d[q] = p.theta * (limiter(r) / sig[q]) + p.one_minus_theta * d[q];
+            let grad2 = gx * gx + gy * gy + gz * gz;
+            d[q] = relaxed_d(p, limiter, grad2, sig[q] * phi[q], sig[q], d[q]);
         }
     }
     for q in 0..len {
@@ -981,6 +956,61 @@ fn update_row<T: Real, const FLD: bool, const M: bool, L: Fn(T) -> T>(
         }
     }
     lanes.iter().chain(tail).fold(T::zero(), |a, &b| a + b)
+}
+
+/// D ← θ F(R)/σ + (1 − θ) D with R = max(|∇φ|, floor)/max(σφ, floor) (FLD Eqs 33–35,
+/// θ-relaxed, see the `fld` module docs), from |∇φ|² and σφ: the one formula of every D
+/// update of the sweep (the row loop, the x-ends, the boundary batch).
+#[inline(always)]
+fn relaxed_d<T: Real, L: Fn(T) -> T>(p: &Params<T>, lim: &L, grad2: T, sphi: T, sig: T, d: T) -> T {
+    let r = grad2.sqrt().max(p.floor) / sphi.max(p.floor);
+    p.theta * (lim(r) / sig) + p.one_minus_theta * d
+}
+
+/// D of the x-end voxels (i = 0, nx − 1) of colour c in one interior row
+/// ([`CpuFld::x_ends_in_pass`]), with the differences of [`CpuFld::update_boundary_d`]: one-sided
+/// in x towards the interior neighbour (the other colour), central in y and z (their ×1
+/// dropped: exact). `phi`, `d`, `sig`: the row of colour c (s = its parity); `rows`: the other
+/// colour's rows around it; `prev`: where to keep the D being replaced (left, right), for a
+/// black row.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn update_x_ends<T: Real, L: Fn(T) -> T>(
+    nx: usize,
+    s: usize,
+    phi: &[T],
+    d: &mut [T],
+    sig: &[T],
+    rows: &Rows<T>,
+    mut prev: Option<&mut [T]>,
+    p: &Params<T>,
+    limiter: &L,
+) {
+    let two = T::c(2.0);
+    // (m, whether it is the left end), where that end has this row's colour.
+    let left = (s == 0).then_some((0, true));
+    let right = ((nx - 1 - s) % 2 == 0).then_some(((nx - 1 - s) / 2, false));
+    for (m, is_left) in [left, right].into_iter().flatten() {
+        // The interior neighbour i = 1 or nx − 2.
+        let n_phi = if is_left {
+            rows.x[0]
+        } else {
+            rows.x[m + s - 1]
+        };
+        let gx = if is_left {
+            n_phi - phi[m]
+        } else {
+            phi[m] - n_phi
+        } * p.inv_2dl
+            * two;
+        let gy = (rows.yp[m] - rows.ym[m]) * p.inv_2dl;
+        let gz = (rows.zp[m] - rows.zm[m]) * p.inv_2dl;
+        if let Some(prev) = prev.as_deref_mut() {
+            prev[usize::from(!is_left)] = d[m];
+        }
+        let grad2 = gx * gx + gy * gy + gz * gz;
+        d[m] = relaxed_d(p, limiter, grad2, sig[m] * phi[m], sig[m], d[m]);
+    }
 }
 
 /// Slabs per parallel task of a colour pass, and rows per block within it: the pass walks

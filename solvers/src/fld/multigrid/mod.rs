@@ -225,9 +225,10 @@
 //!   be: SOR's 277 sweeps against the multigrid's 26.1 work units cap the ratio at 10.6× for a
 //!   cycle that cost nothing but its smoothing sweeps, and the cycle's own passes over the fine
 //!   grid (the Krylov combination and history, packing φ into the smoother and out, two
-//!   residuals, two restrictions, the prolongation, the error estimate: about 1.3 times the
-//!   bytes of its four sweeps, `perf` of the 255³ CDA solve: smoothing 26 % of the samples,
-//!   restrictions 10 %, residuals 9 %) are not free. Setup is not in these seconds; it now
+//!   residuals, two restrictions, the prolongation, the error estimate) are not free: `perf`
+//!   of the 255³ CDA `point_source` run (one solve; its setup and the analytic comparison
+//!   are in the samples too) put 26 % of the samples in the smoothing sweeps, 10 % in the
+//!   restrictions and 9 % in the residuals. Setup is not in these seconds; it now
 //!   fills the fine level's packed fields in parallel over z-slabs and unpacks only σ and
 //!   the absorption back (φ and D were unpacked and dropped): `CpuMultigrid::new` on the
 //!   Fig 4 cloud, best of 3, 127³ CDA 0.109 → 0.085 s, FLD-LP 0.103 → 0.076 s; 255³ 1.15 →
@@ -780,8 +781,6 @@ impl<T: Real> CpuMultigrid<T> {
         self.cycle_estimate().0
     }
 
-    /// One cycle: R̄/j̄ after it and the error estimate of [`ErrorEstimate`] (0 and 0 for the
-    /// trivial problem).
     /// [`CpuMultigrid::cycle_at`] level `l`, on one thread if the level is small.
     fn visit(&mut self, l: usize, kind: Cycle) {
         self.sized(l, |mg| mg.cycle_at(l, kind));
@@ -803,6 +802,8 @@ impl<T: Real> CpuMultigrid<T> {
         }
     }
 
+    /// One cycle: R̄/j̄ after it and the error estimate of [`ErrorEstimate`] (0 and 0 for the
+    /// trivial problem).
     fn cycle_estimate(&mut self) -> (f64, f64) {
         self.sized(0, |mg| mg.cycle_estimate_on())
     }
@@ -923,16 +924,6 @@ impl<T: Real> CpuMultigrid<T> {
     }
 }
 
-/// Nonlinear Krylov subspace acceleration of the cycles (Oosterlee & Washio, SIAM J. Sci.
-/// Comput. 21, 2000): with the last m + 1 cycle results φ_0 … φ_m (φ_m the newest) and their
-/// residuals r_i = f − L(φ_i) (D recomputed, the stop's residual), the next cycle starts from
-/// φ_m + Σ α_i (φ_i − φ_m) with α minimising ‖r_m + Σ α_i (r_i − r_m)‖₂, the residual of
-/// the combination were L linear (for CDA it is: this is GMRES-like acceleration of the
-/// cycle; for FLD a multisecant step). The combination is projected to φ ≥ 0 as the smoother
-/// projects. A cycle that ends with `RESTART_GROWTH` times the R̄/j̄ of the one before
-/// drops the history but for its own result (a restart). The Gram matrix of the residuals is kept up to date
-/// with one pass per cycle (sums per z-slab added in slab order: the same for any thread
-/// count).
 /// Levels with fewer voxels than this (about 34³) run on one thread, inside a one-thread
 /// pool so that every parallel loop of theirs runs inline. *Why*: a cycle issues dozens of
 /// parallel loops per level visit, and on small levels waking the pool's workers costs more
@@ -955,6 +946,16 @@ const SERIAL_VOXELS: usize = 40_000;
 /// the Fig 4 cloud at n = 127 (108, 108, 115).
 const RESTART_GROWTH: f64 = 1.5;
 
+/// Nonlinear Krylov subspace acceleration of the cycles (Oosterlee & Washio, SIAM J. Sci.
+/// Comput. 21, 2000): with the last m + 1 cycle results φ_0 … φ_m (φ_m the newest) and their
+/// residuals r_i = f − L(φ_i) (D recomputed, the stop's residual), the next cycle starts from
+/// φ_m + Σ α_i (φ_i − φ_m) with α minimising ‖r_m + Σ α_i (r_i − r_m)‖₂, the residual of
+/// the combination were L linear (for CDA it is: this is GMRES-like acceleration of the
+/// cycle; for FLD a multisecant step). The combination is projected to φ ≥ 0 as the smoother
+/// projects. A cycle that ends with `RESTART_GROWTH` times the R̄/j̄ of the one before
+/// drops the history but for its own result (a restart). The Gram matrix of the residuals is kept up to date
+/// with one pass per cycle (sums per chunk added in chunk order: the same for any thread
+/// count).
 #[derive(Debug, Default)]
 struct Krylov {
     depth: usize,
