@@ -192,15 +192,17 @@
 //!   only): f32 65.7 → 66.3 ms, f64 112.0 → 111.7 ms, so the sweep is not bound by the divider.
 //!   Skipping the boundary layer's two x-end voxels per row (2 % of the voxels): 66.4 → 58.7
 //!   ms, so those scattered gathers (each reads seven cache lines in five rows) are 12 % of the
-//!   iteration, while the four full faces cost nothing measurable. They are now folded into
+//!   iteration. (The four full faces are not free either: skipping them at 04d0d3a, three runs
+//!   alternating, took 58.9–59.7 → 54.8–55.9 ms, about 7 %; they are still gathered by
+//!   `update_boundary_d`, in rows.) The x-ends are now folded into
 //!   the row passes (`CpuFld::x_ends_in_pass`, where it is argued exact: an end's only
 //!   non-constant input is the interior voxel next to it in the same row): φ, D and the
 //!   residual history are bit-identical (hashes after 30 iterations, every limiter including
 //!   Larsen-3, paper and Marshak faces, θ = 0.7, f32 and f64, 40×33×37, 3×9×8 and 4×5×6
 //!   random media with 20 % vacuum, and 12 multigrid cycles on the 48³ cloud), and the same
 //!   example measures 256³ f32 66.0–68.3 → 62.1–62.2 ms, f64 113.7–115.4 → 110.3–112.0 ms,
-//!   128³ f32 11.6 → 10.7 ms. `cargo bench -p benches --bench diffusion` afterwards
-//!   (`results/bench/diffusion_cpu.csv`): FLD-LP 256³ f32 63.5 ms (0.24 of a 39.3 GB/s
+//!   128³ f32 11.6 → 10.7 ms. `cargo bench -p benches --bench diffusion` afterwards (its CSV
+//!   was committed with a38fa9f and replaced by the run of the next paragraph): FLD-LP 256³ f32 63.5 ms (0.24 of a 39.3 GB/s
 //!   triad), f64 111.6 ms (0.27 of 40.8 GB/s); CDA f32 20.2 ms is 0.57 of that run's 40.8
 //!   GB/s triad (0.63 of the 37.3 GB/s of the run before: the probe, not the sweep, moved;
 //!   a 256³-only rerun gave 0.565 at 41.1 GB/s), CDA f64 0.78. A third full run ten minutes
@@ -209,7 +211,8 @@
 //!   machine's triad moves by a third within minutes while the sweeps do not move at all, so
 //!   neither sweep is bound by DRAM bandwidth here, and a single run's ratio says more about
 //!   the probe than about the sweep.
-//!   **Row blocks across slabs (`SLAB_GROUP`, `ROW_BLOCK` in `cpu.rs`; 2026-12-06).** A
+//!   **Row blocks across slabs (`SLAB_GROUP`, `ROW_BLOCK` in `cpu.rs`; 2026-12-06, the same
+//!   2-vCPU AMD EPYC 7002, family 23 model 49).** A
 //!   colour pass used to take one z-slab per task, row after row: by the time a slab needs
 //!   its z-neighbours' rows (the slabs before and after, 4 arrays of 132 KB each at 256³
 //!   f32), they have left the 512 KB L2. Each task now takes up to 8 consecutive slabs (at
@@ -223,9 +226,13 @@
 //!   GB/s within the run): 256³ CDA f32 16.9 ms (0.66 of 42.3 GB/s), FLD-LP f32 58.4 ms (0.33
 //!   of 31.4 GB/s), f64 105.8 ms (0.37 of 30.9 GB/s); its 64³ FLD-LP rows (1.9 and 4.0 ms)
 //!   are noisy: a 64³-only rerun gave 2.2 and 2.6 ms. Padding each run to whole 8-voxel vectors (the padding lanes
-//!   masked out of every store) was slower, 65.5 → 68.6–74.2 ms f32: LLVM's vectorised loop
-//!   keeps a scalar remainder of 1–8 iterations whatever the trip count (it cannot prove the
-//!   cut slices as long as the run), so a run of 128 left 8 scalar voxels where 127 left 7.
+//!   masked out of every store; before the x-end fold, against 65.5–67.3 ms f32 and
+//!   113.4–115.8 ms f64 unpadded) did not pay: padding both loops took 68.6–74.2 ms f32 (LLVM's
+//!   vectorised loop kept a scalar remainder of 1–8 iterations whatever the trip count, as it
+//!   could not prove the cut slices as long as the run, so a run of 128 left 8 scalar voxels
+//!   where 127 left 7; re-cutting the slices at the loop removed that but not the cost of the
+//!   masks), padding the D loop alone 63.8–64.3 ms f32 but 117.1 ms f64, and F/σ into a
+//!   scratch row over the padded run with the blend over the real one 70.9–71.3 ms f32.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
