@@ -221,9 +221,9 @@
 //!   (the hashes of the previous bullet, all 36 cases and the multigrid). Same ad-hoc
 //!   example, ms per iteration before → after: CDA f32 256³ 19.7 → 17.4, 128³ 3.30 → 2.63,
 //!   64³ 0.66 → 0.48; CDA f64 256³ 28.5 → 28.1, 128³ 4.32 → 3.82; FLD-LP f32 256³ 62.4 →
-//!   59.5, 128³ 10.5 → 10.0; FLD-LP f64 256³ 110.8 → 107.4. The bench afterwards (the
-//!   committed `results/bench/diffusion_cpu.csv`, whose triad probes swung between 42 and 30
-//!   GB/s within the run): 256³ CDA f32 16.9 ms (0.66 of 42.3 GB/s), FLD-LP f32 58.4 ms (0.33
+//!   59.5, 128³ 10.5 → 10.0; FLD-LP f64 256³ 110.8 → 107.4. The bench afterwards (its
+//!   `results/bench/diffusion_cpu.csv`, committed with 04d0d3a and replaced by the run of the
+//!   FMA paragraph below; its triad probes swung between 42 and 30 GB/s within the run): 256³ CDA f32 16.9 ms (0.66 of 42.3 GB/s), FLD-LP f32 58.4 ms (0.33
 //!   of 31.4 GB/s), f64 105.8 ms (0.37 of 30.9 GB/s); its 64³ FLD-LP rows (1.9 and 4.0 ms)
 //!   are noisy: a 64³-only rerun gave 2.2 and 2.6 ms. Padding each run to whole 8-voxel vectors (the padding lanes
 //!   masked out of every store; before the x-end fold, against 65.5–67.3 ms f32 and
@@ -233,6 +233,33 @@
 //!   where 127 left 7; re-cutting the slices at the loop removed that but not the cost of the
 //!   masks), padding the D loop alone 63.8–64.3 ms f32 but 117.1 ms f64, and F/σ into a
 //!   scratch row over the padded run with the blend over the real one 70.9–71.3 ms f32.
+//!   **Fused multiply-adds in the limiter polynomials (2026-12-06, same 2-vCPU AMD EPYC 7002;
+//!   `fld::limiter`'s `mul_add`).** The Horner steps of LP's Padé form and of the exp behind
+//!   its closed form are one FMA each where the target has FMA (x86-64-v3 does), instead of
+//!   a rounded multiply and an add. One iteration at 256³ (the ad-hoc example above, median
+//!   of 11, builds alternating): FLD-LP f32 58.8–59.3 → 55.1–56.4 ms, f64 106.3 → 97.3 ms;
+//!   CDA and the other limiters are untouched. This is the one place the sweep is no longer
+//!   bit-identical between targets with and without FMA (the limiter tests hold either way).
+//!   `cargo bench -p benches --bench diffusion` afterwards (the committed
+//!   `results/bench/diffusion_cpu.csv`; its triad probes stayed at 38–45 GB/s at 128³ and
+//!   256³): 256³ FLD-LP f32 54.8 ms (0.27 of a 40.8 GB/s triad), f64 94.6 ms (0.31 of 41.2
+//!   GB/s); CDA f32 17.3 ms (0.63 of 43.0 GB/s), f64 26.4 ms (0.90 of 39.5 GB/s).
+//!   **What LP's evaluation costs (same example and machine, with the FMAs, median of 11, two
+//!   runs each):** CDA 17.2–17.6 ms, sum 33.5–34.2 ms, max 33.7–33.8 ms, Kershaw 37.6–38.1
+//!   ms, LP 55.3–55.6 ms per f32 iteration at 256³ (f64: CDA 27.2, LP 96.8 ms). The Knudsen
+//!   number, D = F/σ and the θ-blend cost 16 ms over CDA with any limiter, and LP's Padé form,
+//!   closed form and exp another 21 ms, so FLD-LP at 0.4 of a 31 GB/s triad (≈ 48 ms) needs a
+//!   cheaper LP, not less memory traffic.
+//!   **Tried and dropped: no scalar tail (2026-12-06, builds not kept).** `perf annotate` of
+//!   the f32 LP sweep at 256³ put about a fifth of the row loop's samples in LLVM's scalar
+//!   remainder after the vectorised D loop (7 of each run's 127 voxels). (a) Chunks of 8
+//!   voxels loaded into fixed arrays: LLVM unrolls the 8-lane loop and its SLP vectoriser
+//!   leaves the limiter scalar (LP 198–253 ms, CDA 103–151 ms). (b) The D loop out of place
+//!   into a scratch row over [0, 8⌊len/8⌋) and again over the last 8 voxels (overlapping, same
+//!   inputs, same values; bit-identical): with the φ loop in a function of its own LP 54.7–55.7
+//!   ms against 59.1–60.6 ms, but CDA 18.7–19.6 ms against 17.6–18.3 ms, and with the φ loop
+//!   inline as before LP 58.9–59.6 ms (no gain): a gain that depends on where LLVM puts a
+//!   loop, bought with a CDA loss, was not kept.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
