@@ -22,7 +22,9 @@
 //!   log-spaced points) against f64 references (libm `hypot`/`powf`, LP series / closed
 //!   form): every limiter ≤ 4 ulp in f32 and ≤ 10⁻¹² relative in f64 (both pass). The LP
 //!   algorithm emulated op by op in IEEE f32/f64 (Python, 4001 log-spaced R, 40-digit
-//!   mpmath reference) gave 2.01 ulp (at R = 7.24) and 4.2·10⁻¹⁶ (R = 2.25) worst.
+//!   mpmath reference) gave 2.01 ulp (at R = 7.24) and 4.2·10⁻¹⁶ (R = 2.25) worst; that
+//!   emulation predates the fused multiply-adds of `mul_add` (2026-12-06), for which the
+//!   `dense_accuracy_*` bounds are what is checked.
 //!   Bench before/after: `fld` module docs.
 //! * Larsen with n ≠ 2 still calls `powf` (scalar libm): a branch-free log/exp pair for
 //!   general n was not written (issue 15 item 3 is not complete for it).
@@ -232,7 +234,8 @@ pub(crate) fn exp_bounded<T: Real>(y: T) -> T {
 
 /// The Levermore–Pomraning limiter F(R) = (coth R − 1/R)/R (FLD Table 2), branch-free and
 /// accurate for all R ≥ 0: ≤ 4 ulp in `f32` and ≤ 10⁻¹² relative in `f64` (pinned by the
-/// tests below; 2.01 ulp / 4.2·10⁻¹⁶ worst in an op-by-op emulation against 40 digits).
+/// tests below; 2.01 ulp / 4.2·10⁻¹⁶ worst in an op-by-op emulation against 40 digits,
+/// made before the Horner steps became FMAs, see `mul_add`).
 ///
 /// The closed form cancels catastrophically as R → 0 (coth R ≈ 1/R). Both forms below are
 /// sums of positive terms, so neither cancels:
