@@ -147,7 +147,14 @@ impl<T: Real> CpuFld<T> {
         let (mut phi, mut d, mut vac) = (zeros(), zeros(), zeros());
         let cda = config.limiter.is_constant();
         let third = T::one() / T::c(3.0);
-        // Per slab k: [σ, absorption, source, φ, D, vacuum] × [red, black].
+        // Per slab k: [σ, absorption, source, φ, D, vacuum] × [red, black]; field F of
+        // colour c at F + c.
+        const SIG: usize = 0;
+        const ABSORB: usize = 2;
+        const SRC: usize = 4;
+        const PHI: usize = 6;
+        const D: usize = 8;
+        const VAC: usize = 10;
         let mut slabs: Vec<Vec<&mut [T]>> = (0..nz).map(|_| Vec::with_capacity(12)).collect();
         for field in [&mut sig, &mut absorb, &mut src, &mut phi, &mut d, &mut vac] {
             for colour in field.iter_mut() {
@@ -159,9 +166,9 @@ impl<T: Real> CpuFld<T> {
         slabs.into_par_iter().enumerate().for_each(|(k, mut f)| {
             // Defaults, also of the slots past a row's last voxel (never a voxel's value).
             for c in 0..2 {
-                f[c].fill(T::one());
-                f[6 + c].fill(phi0);
-                f[8 + c].fill(d0);
+                f[SIG + c].fill(T::one());
+                f[PHI + c].fill(phi0);
+                f[D + c].fill(d0);
             }
             for j in 0..ny {
                 for i in 0..nx {
@@ -174,17 +181,17 @@ impl<T: Real> CpuFld<T> {
                         KnudsenSigma::Extinction => st,
                         KnudsenSigma::EffectiveAlbedo => (a * medium.sigma_t[n].f()).max(sigma_eps),
                     };
-                    f[c][p] = T::c(ks);
+                    f[SIG + c][p] = T::c(ks);
                     if medium.sigma_t[n].f() <= sigma_eps {
-                        f[10 + c][p] = T::one();
+                        f[VAC + c][p] = T::one();
                     }
-                    f[2 + c][p] = T::c((1.0 - a) * st * dl * dl);
-                    f[4 + c][p] = T::c(medium.emission[n].f() / scale * dl * dl);
+                    f[ABSORB + c][p] = T::c((1.0 - a) * st * dl * dl);
+                    f[SRC + c][p] = T::c(medium.emission[n].f() / scale * dl * dl);
                     if cda {
-                        f[8 + c][p] = third / T::c(ks);
+                        f[D + c][p] = third / T::c(ks);
                     }
                     if let (Boundary::Values(v), true) = (boundary, grid.is_boundary(i, j, k)) {
-                        f[6 + c][p] = T::c(v[n].f() / scale);
+                        f[PHI + c][p] = T::c(v[n].f() / scale);
                     }
                 }
             }

@@ -188,13 +188,13 @@ const INV_FACTORIAL: [f64; 12] = [
 
 /// a·b + c: one fused multiply-add (one rounding) where the target has FMA (the workspace's
 /// x86-64-v3 target does, see `.cargo/config.toml`), else a multiply and an add (a libm
-/// `fma` call would keep the sweep's loops scalar). **Decision (2026-12-06):** the hot
-/// polynomials of the limiters use it: one red-black FLD-LP iteration at 256³ (2-vCPU AMD
+/// `fma` call would keep the sweep's loops scalar). **Decision (2026-12-06):** LP's
+/// polynomials (its Padé form and the exp of its closed form, through [`horner`]) use it: one red-black FLD-LP iteration at 256³ (2-vCPU AMD
 /// EPYC 7002, median of 11, alternating builds) took 58.8–59.3 → 55.1–56.4 ms in `f32` and
 /// 106.3 → 97.3 ms in `f64`; results then differ in the last bits between targets with and
 /// without FMA (within the limiters' stated accuracy either way, pinned by the tests below).
 #[inline(always)]
-pub(crate) fn mul_add<T: Real>(a: T, b: T, c: T) -> T {
+fn mul_add<T: Real>(a: T, b: T, c: T) -> T {
     if cfg!(target_feature = "fma") {
         a.mul_add(b, c)
     } else {

@@ -248,17 +248,19 @@
 //!   runs each):** CDA 17.2–17.6 ms, sum 33.5–34.2 ms, max 33.7–33.8 ms, Kershaw 37.6–38.1
 //!   ms, LP 55.3–55.6 ms per f32 iteration at 256³ (f64: CDA 27.2, LP 96.8 ms). The Knudsen
 //!   number, D = F/σ and the θ-blend cost 16 ms over CDA with any limiter, and LP's Padé form,
-//!   closed form and exp another 21 ms, so FLD-LP at 0.4 of a 31 GB/s triad (≈ 48 ms) needs a
-//!   cheaper LP, not less memory traffic.
+//!   closed form and exp another 21 ms. 0.4 of the bench run's 40.8 GB/s triad (below) at
+//!   the 604 MB an f32 FLD iteration counts at 256³ would take ≈ 37 ms per iteration (≈ 49 ms
+//!   at the 31 GB/s the probe read in the run before), so FLD-LP needs a cheaper LP, not less
+//!   memory traffic.
 //!   **Tried and dropped: no scalar tail (2026-12-06, builds not kept).** `perf annotate` of
 //!   the f32 LP sweep at 256³ put about a fifth of the row loop's samples in LLVM's scalar
 //!   remainder after the vectorised D loop (7 of each run's 127 voxels). (a) Chunks of 8
 //!   voxels loaded into fixed arrays: LLVM unrolls the 8-lane loop and its SLP vectoriser
 //!   leaves the limiter scalar (LP 198–253 ms, CDA 103–151 ms). (b) The D loop out of place
 //!   into a scratch row over [0, 8⌊len/8⌋) and again over the last 8 voxels (overlapping, same
-//!   inputs, same values; bit-identical): with the φ loop in a function of its own LP 54.7–55.7
-//!   ms against 59.1–60.6 ms, but CDA 18.7–19.6 ms against 17.6–18.3 ms, and with the φ loop
-//!   inline as before LP 58.9–59.6 ms (no gain): a gain that depends on where LLVM puts a
+//!   inputs, same values; bit-identical): with the φ loop in a function of its own LP 54.3–55.7
+//!   ms against 59.1–60.6 ms, but CDA 18.5–19.6 ms against 17.6–18.3 ms, and with the φ loop
+//!   inline as before LP 58.9–59.8 ms (no gain): a gain that depends on where LLVM puts a
 //!   loop, bought with a CDA loss, was not kept.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
