@@ -34,31 +34,12 @@ pub trait Real:
     fn c(x: f64) -> Self;
     /// Widens to `f64` (exact for `f32` and `f64`).
     fn f(self) -> f64;
-    /// `1.5·2^m + bias` (m mantissa bits): adding it to y/ln 2 rounds to the integer n in the
-    /// low mantissa bits, which [`Real::pow2_shifted`] turns into 2ⁿ (the branch-free exp of
-    /// `fld::limiter`).
-    const POW2_SHIFT: f64;
-    /// Smallest argument of that exp: 2ⁿ stays normal (n ≥ −126 / −1022).
-    const EXP_MIN: f64;
-    /// Degree of the Taylor polynomial of e^r on |r| ≤ ln 2/2 in that exp: truncation
-    /// 1.2·10⁻⁷ (`f32`, 6) and 6·10⁻¹⁵ (`f64`, 11) relative (see `fld::limiter`).
-    const EXP_DEGREE: usize;
-    /// 2ⁿ from `k = n + POW2_SHIFT` (n an integer with a normal 2ⁿ): shifts the low mantissa bits of k into the exponent field. Branch-free and
-    /// vectorisable (a bit cast and an integer shift).
-    fn pow2_shifted(k: Self) -> Self;
 }
 
 impl Real for f32 {
     const NAME: &'static str = "f32";
     const DEFAULT_TOLERANCE: f64 = 1e-4;
     const DEFAULT_EPSILON: f64 = 1e-10;
-    const POW2_SHIFT: f64 = 1.5 * 8_388_608.0 + 127.0;
-    const EXP_MIN: f64 = -87.0;
-    const EXP_DEGREE: usize = 6;
-    #[inline(always)]
-    fn pow2_shifted(k: Self) -> Self {
-        f32::from_bits(k.to_bits() << 23)
-    }
     #[inline(always)]
     fn c(x: f64) -> Self {
         x as f32
@@ -73,13 +54,6 @@ impl Real for f64 {
     const NAME: &'static str = "f64";
     const DEFAULT_TOLERANCE: f64 = 1e-6;
     const DEFAULT_EPSILON: f64 = 1e-20;
-    const POW2_SHIFT: f64 = 1.5 * 4_503_599_627_370_496.0 + 1023.0;
-    const EXP_MIN: f64 = -708.0;
-    const EXP_DEGREE: usize = 11;
-    #[inline(always)]
-    fn pow2_shifted(k: Self) -> Self {
-        f64::from_bits(k.to_bits() << 52)
-    }
     #[inline(always)]
     fn c(x: f64) -> Self {
         x

@@ -559,7 +559,7 @@ impl<T: Real> CpuFld<T> {
     /// that vectorises (the same operations in the same order per voxel, so D is
     /// bit-identical to the one-voxel-at-a-time version it replaced; measured in the `fld`
     /// module docs).
-    fn update_boundary_d_with<L: Fn(T) -> T + Sync>(&mut self, lim: L) {
+    fn update_boundary_d_with<L: Fn(T) -> (T, T) + Sync>(&mut self, lim: L) {
         let g = self.grid;
         let [nx, ny, nz] = g.n;
         let h = self.h;
@@ -647,26 +647,26 @@ impl<T: Real> CpuFld<T> {
 
     fn pass_face<const M: bool>(&mut self, c: usize) -> f64 {
         match self.config.limiter {
-            FluxLimiter::Cda => self.pass_with::<false, M, _>(c, |_| T::zero()),
-            FluxLimiter::Sum => self.pass_with::<true, M, _>(c, |r| FluxLimiter::Sum.eval(r)),
-            FluxLimiter::Max => self.pass_with::<true, M, _>(c, |r| FluxLimiter::Max.eval(r)),
+            FluxLimiter::Cda => self.pass_with::<false, M, _>(c, |_| (T::zero(), T::one())),
+            FluxLimiter::Sum => self.pass_with::<true, M, _>(c, |r| FluxLimiter::Sum.fraction(r)),
+            FluxLimiter::Max => self.pass_with::<true, M, _>(c, |r| FluxLimiter::Max.fraction(r)),
             FluxLimiter::Kershaw => {
-                self.pass_with::<true, M, _>(c, |r| FluxLimiter::Kershaw.eval(r))
+                self.pass_with::<true, M, _>(c, |r| FluxLimiter::Kershaw.fraction(r))
             }
             // n = 2 gets its own (branch-free, vectorising) instance; other n call `powf`.
             FluxLimiter::Larsen(2.0) => {
-                self.pass_with::<true, M, _>(c, |r| FluxLimiter::Larsen(2.0).eval(r))
+                self.pass_with::<true, M, _>(c, |r| FluxLimiter::Larsen(2.0).fraction(r))
             }
             FluxLimiter::Larsen(n) => {
-                self.pass_with::<true, M, _>(c, move |r| FluxLimiter::Larsen(n).eval(r))
+                self.pass_with::<true, M, _>(c, move |r| FluxLimiter::Larsen(n).fraction(r))
             }
             FluxLimiter::LevermorePomraning => {
-                self.pass_with::<true, M, _>(c, super::limiter::levermore_pomraning)
+                self.pass_with::<true, M, _>(c, |r| FluxLimiter::LevermorePomraning.fraction(r))
             }
         }
     }
 
-    fn pass_with<const FLD: bool, const M: bool, L: Fn(T) -> T + Sync>(
+    fn pass_with<const FLD: bool, const M: bool, L: Fn(T) -> (T, T) + Sync>(
         &mut self,
         c: usize,
         limiter: L,
@@ -798,7 +798,7 @@ impl<T: Real> BoundaryBatch<T> {
     }
 
     /// [`relaxed_d`] over equal-length slices, so the loop vectorises.
-    fn compute<L: Fn(T) -> T>(&mut self, p: &Params<T>, lim: &L) {
+    fn compute<L: Fn(T) -> (T, T)>(&mut self, p: &Params<T>, lim: &L) {
         let n = self.d.len();
         let (grad2, sphi, sig, d) = (
             &self.grad2[..n],
@@ -853,7 +853,7 @@ impl<'a, T> Rows<'a, T> {
 /// checks and vectorise the loop.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn update_row<T: Real, const FLD: bool, const M: bool, L: Fn(T) -> T>(
+fn update_row<T: Real, const FLD: bool, const M: bool, L: Fn(T) -> (T, T)>(
     phi: &mut [T],
     d: &mut [T],
     sig: &[T],
@@ -969,9 +969,17 @@ fn update_row<T: Real, const FLD: bool, const M: bool, L: Fn(T) -> T>(
 /// θ-relaxed, see the `fld` module docs), from |∇φ|² and σφ: the one formula of every D
 /// update of the sweep (the row loop, the x-ends, the boundary batch).
 #[inline(always)]
-fn relaxed_d<T: Real, L: Fn(T) -> T>(p: &Params<T>, lim: &L, grad2: T, sphi: T, sig: T, d: T) -> T {
+fn relaxed_d<T: Real, L: Fn(T) -> (T, T)>(
+    p: &Params<T>,
+    lim: &L,
+    grad2: T,
+    sphi: T,
+    sig: T,
+    d: T,
+) -> T {
     let r = grad2.sqrt().max(p.floor) / sphi.max(p.floor);
-    p.theta * (lim(r) / sig) + p.one_minus_theta * d
+    let (num, den) = lim(r);
+    (p.theta * num) / (den * sig) + p.one_minus_theta * d
 }
 
 /// D of the x-end voxels (i = 0, nx − 1) of colour c in one interior row
@@ -982,7 +990,7 @@ fn relaxed_d<T: Real, L: Fn(T) -> T>(p: &Params<T>, lim: &L, grad2: T, sphi: T, 
 /// black row.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn update_x_ends<T: Real, L: Fn(T) -> T>(
+fn update_x_ends<T: Real, L: Fn(T) -> (T, T)>(
     nx: usize,
     s: usize,
     phi: &[T],

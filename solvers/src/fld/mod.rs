@@ -123,9 +123,10 @@
 //!   The plan warns when `paper` runs with |g| > 0.5. Pinned by
 //!   `reference/tests/anisotropy_scaling.rs` (paper closer at g = 0.3, similarity at 0.99).
 //! * **A limiter that vectorises (issue 15 item 3; [`limiter`]).** LP (and Kershaw,
-//!   Larsen-2, sum, max) are evaluated branch-free with no libm call: LP is a Padé form of
+//!   Larsen-2, sum, max) are evaluated branch-free with no libm call: LP was a Padé form of
 //!   its continued fraction for R ≤ 2 and the closed form with an inline polynomial exp
-//!   above, both computed and one selected, so the row loop of `cpu.rs` has no branch or
+//!   above (since 2026-12-06 a rational minimax form and (R − 1)/R², no exp: the last
+//!   paragraphs of the next bullet), both computed and one selected, so the row loop of `cpu.rs` has no branch or
 //!   call left in it (no runtime dispatch; the sweep's loop structure is unchanged; the
 //!   code-generation target is the next decision). Accuracy (tests in `limiter.rs`, 20001 log-spaced R in
 //!   [10⁻⁸, 10⁸] plus 0 and huge R): ≤ 4 ulp f32, ≤ 10⁻¹² f64 pinned. Bench
@@ -262,6 +263,22 @@
 //!   ms against 59.1–60.6 ms, but CDA 18.5–19.6 ms against 17.6–18.3 ms, and with the φ loop
 //!   inline as before LP 58.9–59.8 ms (no gain): a gain that depends on where LLVM puts a
 //!   loop, bought with a CDA loss, was not kept.
+//!   **LP without exp, one division for D (2026-12-06, same 2-vCPU AMD EPYC 7002, same
+//!   ad-hoc example, median of 11 (f32) / 7 (f64)).** (1) `limiter::levermore_pomraning` is
+//!   now Q/(3Q + R²P) with P, Q a relative minimax rational of type (4, 4) in R² below R = 9
+//!   (f32; (7, 7) below 16.5 in f64) and (R − 1)/R² above, where e^(−2R) is below the
+//!   precision: no exp, no 1/R. Worst error 3.28 ulp over every positive f32 (measured
+//!   exhaustively; the tests check every f32 in [2⁻¹⁰, 2²⁷]). (2) Every limiter is a
+//!   fraction ([`limiter::FluxLimiter::fraction`]) and D = θ·num/(den·σ) takes one division
+//!   instead of two. f32 LP 256³: 55.3–55.6 → 41.2–43.7 ms over several runs ((1) alone:
+//!   41.4–42.1); f64 LP 96.4 → 76.8–80.5 ms. The other limiters moved within the noise
+//!   (f32 sum 33.1–34.0 → 32.1–33.5, Kershaw 35.7–36.5 after; CDA 17.3–17.8 after, untouched),
+//!   so (2) is not measurably faster on its own; it is kept because it is one division fewer
+//!   on any machine whose divider is busier. LP now costs ≈ 9 ms over the sum limiter in
+//!   f32 (was 21) and ≈ 24 ms in f64 (was 42). Also measured and dropped: Estrin's scheme
+//!   for the two polynomials (41.3–41.8 ms f32, 76.6–78.0 ms f64: within the noise, and 3.61
+//!   ulp worst), and skipping the D loop's scalar remainder altogether (wrong numbers,
+//!   timing only: LP 43.3–43.5 ms, so the tail no longer costs anything measurable).
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.

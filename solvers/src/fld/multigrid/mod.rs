@@ -1211,7 +1211,7 @@ fn fresh_d_into(g: &Grid, phi: &[f64], sig: &[f64], cfg: &FldConfig, floor: f64,
 
 /// [`fresh_d`] for one limiter `lim`: interior voxels of interior rows in a contiguous,
 /// vectorisable loop; the Dirichlet layer with one-sided differences.
-fn fresh_d_with<L: Fn(f64) -> f64 + Sync>(
+fn fresh_d_with<L: Fn(f64) -> (f64, f64) + Sync>(
     g: &Grid,
     phi: &[f64],
     sig: &[f64],
@@ -1236,7 +1236,8 @@ fn fresh_d_with<L: Fn(f64) -> f64 + Sync>(
             let gz = df(g.index(i, j, zl), g.index(i, j, zr), zr - zl);
             let n = g.index(i, j, k);
             let r = (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (sig[n] * phi[n]).max(floor);
-            lim(r) / sig[n]
+            let (num, den) = lim(r);
+            num / (den * sig[n])
         };
         for j in 0..ny {
             let row = &mut slab[j * nx..(j + 1) * nx];
@@ -1262,7 +1263,8 @@ fn fresh_d_with<L: Fn(f64) -> f64 + Sync>(
                 let gy = (yp[q] - ym[q]) * inv_2dl;
                 let gz = (zp[q] - zm[q]) * inv_2dl;
                 let r = (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (s[q] * p[q]).max(floor);
-                out[q] = lim(r) / s[q];
+                let (num, den) = lim(r);
+                out[q] = num / (den * s[q]);
             }
         }
     });
