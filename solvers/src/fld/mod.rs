@@ -279,6 +279,12 @@
 //!   for the two polynomials (41.3–41.8 ms f32, 76.6–78.0 ms f64: within the noise, and 3.61
 //!   ulp worst), and skipping the D loop's scalar remainder altogether (wrong numbers,
 //!   timing only: LP 43.3–43.5 ms, so the tail no longer costs anything measurable).
+//!   `cargo bench -p benches --bench diffusion` afterwards (the committed
+//!   `results/bench/diffusion_cpu.csv`; triad probes 38–44 GB/s at 128³ and 256³): 256³
+//!   FLD-LP f32 42.3 ms (0.34 of a 42.0 GB/s triad; was 54.8 ms, 0.27), f64 74.2 ms (0.38 of
+//!   42.5 GB/s; was 94.6 ms, 0.31); CDA f32 16.6 ms (0.66 of 43.0 GB/s), f64 26.0 ms (0.87
+//!   of 41.7 GB/s). Issue 15's FLD-LP target (≥ 0.4) is still not met: f32 would need ≈ 36 ms
+//!   at this triad, about what the sum limiter's sweep takes (32–34 ms), and f64 ≈ 71 ms.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
