@@ -249,7 +249,8 @@ fn horner<T: Real>(c: &[f64], x: T) -> T {
 ///   damped by w = 1 − 3F < 1 (w = 0.63 at R = 7, where the f32 error peaks).
 /// * R ≥ R_c: F = (R − 1)/R². The exact F = u((1 − u) + e(1 + u))/(1 − e) with u = 1/R,
 ///   e = e^(−2R) differs by 2e/(1 − u) relative, below R_c's accuracy target (see
-///   [`LP_SWITCH_F32`], [`LP_SWITCH_F64`]); above `LP_HUGE_*` F = 1/R, so R·F → 1 with no overflow.
+///   `LP_SWITCH_F32`, `LP_SWITCH_F64`); above `LP_HUGE_*` F = 1/R, so R·F → 1 with no
+///   overflow.
 ///
 /// **Decision (issue 15 items 3 and 4, 2026-12-06; it replaces a depth-10 Padé form for
 /// R ≤ 2 and the closed form with an inline polynomial exp above):** no exp at all. Both
@@ -264,7 +265,7 @@ fn horner<T: Real>(c: &[f64], x: T) -> T {
 ///   continued fraction's own convergent through a/27 (two degree-6 polynomials) is
 ///   accurate enough but took 44.9–45.4 ms. The damped form is what makes degree (4, 4)
 ///   accurate enough.
-/// * The steps of [`horner`] are fused multiply-adds ([`mul_add`]) where the target has
+/// * The steps of `horner` are fused multiply-adds (`mul_add`) where the target has
 ///   FMA, so results differ in the last bits between targets with and without it; the
 ///   figures above were measured with FMA (the workspace's target), and the tests check
 ///   whatever target they run on. The FMAs were measured with the previous form: 58.8–59.3
