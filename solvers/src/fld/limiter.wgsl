@@ -7,7 +7,9 @@
 // Which flux limiter (FLD Table 2): 0 CDA, 1 sum, 2 max, 3 Kershaw, 4 Larsen-n, 5 LP.
 override LIMITER: u32 = 5u;
 
-// F(R) of FLD Table 2, written as in `fld/limiter.rs` so f32 neither overflows nor cancels.
+// F(R) of FLD Table 2, written so f32 neither overflows nor cancels. LP differs from the CPU's
+// `fld/limiter.rs` (a rational minimax form and (R - 1)/R^2, no exp, since 2026-12-06): the GPU
+// keeps the depth-10 continued fraction for R <= 2 and the closed form with the built-in exp.
 fn limiter(r_in: f32, larsen_n: f32) -> f32 {
     let r = max(r_in, 0.0);
     switch LIMITER {

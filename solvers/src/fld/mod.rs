@@ -126,7 +126,8 @@
 //!   Larsen-2, sum, max) are evaluated branch-free with no libm call: LP was a Padé form of
 //!   its continued fraction for R ≤ 2 and the closed form with an inline polynomial exp
 //!   above (since 2026-12-06 a rational minimax form and (R − 1)/R², no exp: the last
-//!   paragraphs of the next bullet), both computed and one selected, so the row loop of `cpu.rs` has no branch or
+//!   paragraphs of the bullet "Row length, boundary batch, split D loop" below), both
+//!   computed and one selected, so the row loop of `cpu.rs` has no branch or
 //!   call left in it (no runtime dispatch; the sweep's loop structure is unchanged; the
 //!   code-generation target is the next decision). Accuracy (tests in `limiter.rs`, 20001 log-spaced R in
 //!   [10⁻⁸, 10⁸] plus 0 and huge R): ≤ 4 ulp f32, ≤ 10⁻¹² f64 pinned. Bench
@@ -159,7 +160,7 @@
 //!   (0.12) → 87.3 (0.21), CDA f64 69.6 (0.42) → 47.4 (0.66), FLD-LP f64 259.3 (0.10) →
 //!   139.4 (0.27); triad 29–48 GB/s across the probes of those runs. Issue 15's targets
 //!   (FLD-LP ≥ 0.4, CDA ≥ 0.6 of triad) were then met for CDA f64 only (since the next
-//!   decision, for CDA in both precisions): FLD-LP does ~60 vector instructions per voxel (Padé + exp + 4 divisions + sqrt besides the stencil) on
+//!   decision, for CDA in both precisions): FLD-LP then did ~60 vector instructions per voxel (Padé + exp + 4 divisions + sqrt besides the stencil) on
 //!   two vCPUs, which at 0.4 of a 33 GB/s triad would have to retire in ~40 ms.
 //! * **Row length, boundary batch, split D loop (issue 15 item 4; 2026-12-06,
 //!   `results/bench/diffusion_cpu.csv`).** Three changes to `cpu.rs`, each bit-identical (hash
@@ -179,8 +180,8 @@
 //!   FLD-LP f32 95.4 (0.16) → 66.8 (0.25), FLD-LP f64 148.6 (0.21) → 113.1 (0.27); triad
 //!   35–40 GB/s in those runs. Issue 15's CDA target (≥ 0.6 of triad) is met in both
 //!   precisions; FLD-LP's (≥ 0.4) is not, and cannot be on this machine with FLD's arithmetic:
-//!   the same sweep with the sum limiter (one division instead of LP's Padé form, closed form
-//!   and exp) takes 44.0 ms (0.34 of a 39.9 GB/s triad) and with the max limiter 46.1 ms
+//!   the same sweep with the sum limiter (one division instead of LP's then Padé form,
+//!   closed form and exp) takes 44.0 ms (0.34 of a 39.9 GB/s triad) and with the max limiter 46.1 ms
 //!   (0.33), so the Knudsen number, D = F/σ and the θ-blend alone (a square root and two
 //!   divisions per voxel on top of CDA's one) leave FLD below 0.4, and LP's own evaluation
 //!   adds 23 ms. Tried and dropped on the way (same bench): fixed 8-voxel blocks (LLVM unrolled
@@ -236,7 +237,7 @@
 //!   scratch row over the padded run with the blend over the real one 70.9–71.3 ms f32.
 //!   **Fused multiply-adds in the limiter polynomials (2026-12-06, same 2-vCPU AMD EPYC 7002;
 //!   `fld::limiter`'s `mul_add`).** The Horner steps of LP's Padé form and of the exp behind
-//!   its closed form are one FMA each where the target has FMA (x86-64-v3 does), instead of
+//!   its closed form (the LP of that time) became one FMA each where the target has FMA (x86-64-v3 does), instead of
 //!   a rounded multiply and an add. One iteration at 256³ (the ad-hoc example above, median
 //!   of 11, builds alternating): FLD-LP f32 58.8–59.3 → 55.1–56.4 ms, f64 106.3 → 97.3 ms;
 //!   CDA and the other limiters are untouched. This is the one place the sweep is no longer
@@ -248,7 +249,7 @@
 //!   **What LP's evaluation costs (same example and machine, with the FMAs, median of 11, two
 //!   runs each):** CDA 17.2–17.6 ms, sum 33.5–34.2 ms, max 33.7–33.8 ms, Kershaw 37.6–38.1
 //!   ms, LP 55.3–55.6 ms per f32 iteration at 256³ (f64: CDA 27.2, LP 96.8 ms). The Knudsen
-//!   number, D = F/σ and the θ-blend cost 16 ms over CDA with any limiter, and LP's Padé form,
+//!   number, D = F/σ and the θ-blend cost 16 ms over CDA with any limiter, and LP's then Padé form,
 //!   closed form and exp another 21 ms. 0.4 of the bench run's 40.8 GB/s triad (below) at
 //!   the 604 MB an f32 FLD iteration counts at 256³ would take ≈ 37 ms per iteration (≈ 49 ms
 //!   at the 31 GB/s the probe read in the run before), so FLD-LP needs a cheaper LP, not less
@@ -270,8 +271,9 @@
 //!   precision: no exp, no 1/R. Worst error 3.28 ulp over every positive f32 (measured
 //!   exhaustively; the tests check every f32 in [2⁻¹⁰, 2²⁷]). (2) Every limiter is a
 //!   fraction ([`limiter::FluxLimiter::fraction`]) and D = θ·num/(den·σ) takes one division
-//!   instead of two. f32 LP 256³: 55.3–55.6 → 41.2–43.7 ms over several runs ((1) alone:
-//!   41.4–42.1); f64 LP 96.4 → 76.8–80.5 ms. The other limiters moved within the noise
+//!   instead of two. f32 LP 256³: 55.3–55.6 → 41.9–43.7 ms over five runs (a plain P/Q of
+//!   the same degree without (2), dropped for its accuracy: 41.4–42.1); f64 LP 96.4 →
+//!   75.0–80.5 ms. The other limiters moved within the noise
 //!   (f32 sum 33.1–34.0 → 32.1–33.5, Kershaw 35.7–36.5 after; CDA 17.3–17.8 after, untouched),
 //!   so (2) is not measurably faster on its own; it is kept because it is one division fewer
 //!   on any machine whose divider is busier. LP now costs ≈ 9 ms over the sum limiter in

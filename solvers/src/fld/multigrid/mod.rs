@@ -1190,8 +1190,9 @@ impl Contraction {
 ///
 /// The limiter is dispatched once here, so [`fresh_d_with`]'s interior row loop gets it
 /// inlined and vectorises. *Why*: with `lim.eval` in a per-voxel index loop this was 38 % of
-/// the CPU samples of a 127³ FLD-LP multigrid solve (the smoother 22 %); the values are
-/// bit-identical to that loop (same operations per voxel).
+/// the CPU samples of a 127³ FLD-LP multigrid solve (the smoother 22 %); the values were
+/// bit-identical to that loop (same operations per voxel) until D became num/(den·σ) with
+/// one division (2026-12-06, `fld::limiter::FluxLimiter::fraction`).
 fn fresh_d(g: &Grid, phi: &[f64], sig: &[f64], cfg: &FldConfig, floor: f64) -> Vec<f64> {
     let mut d = vec![0.0; g.len()];
     fresh_d_into(g, phi, sig, cfg, floor, &mut d);
