@@ -287,6 +287,13 @@
 //!   42.5 GB/s; was 94.6 ms, 0.31); CDA f32 16.6 ms (0.66 of 43.0 GB/s), f64 26.0 ms (0.87
 //!   of 41.7 GB/s). Issue 15's FLD-LP target (≥ 0.4) is still not met: f32 would need ≈ 36 ms
 //!   at this triad, about what the sum limiter's sweep takes (32–34 ms), and f64 ≈ 71 ms.
+//!   Where f64 still goes (`perf record` of the ad-hoc example, f64 LP at 256³, cpu-clock
+//!   samples, so attributed a few instructions late): 82 % of the samples in the inlined
+//!   row passes, of which the D loop takes 57 % and the φ loop 29 %; about a third of the
+//!   D loop's samples sit just behind its square root and its two divisions (the Knudsen
+//!   number and D). A timing-only build without the Knudsen division (wrong numbers) took
+//!   72.5–73.2 ms against 76.0 ms, so the divider is now a large part of f64 FLD-LP's
+//!   remaining cost, and a cheaper limiter alone will not reach 0.4 in f64 either.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
