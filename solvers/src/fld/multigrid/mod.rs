@@ -251,6 +251,13 @@
 //!   (`convergence_check`) now converges (previous bullets). Operator-dependent
 //!   (Galerkin-type) coarse coefficients and a Newton-type treatment of the limiter's
 //!   nonlinearity remain the candidate fixes for the cloud's FLD-LP growth.
+//!   **W-cycles do not help (2026-12-06, same 2-vCPU AMD EPYC, a W(2, 2) variant built and
+//!   measured, not kept; default Krylov depth 3, f64, R̄/j̄ < 10⁻⁶):** F → W cycles and
+//!   seconds: cloud CDA n = 31, 63, 127: 10, 12, 14 → 10, 12, 14 (1.00 → 1.09 s at 127);
+//!   cloud FLD-LP n = 63: 21 → 21; point source FLD-LP (α = 0.5) n = 63, 127: 10, 11 → 10,
+//!   11 (1.81 → 1.87 s). Solving the coarse problems more exactly changes no cycle count,
+//!   so the growth with n comes from the two-grid step itself (the rediscretised coarse
+//!   operator against the fine one, or the smoother), not from the recursion.
 //! * **GPU ([`gpu`], issue 15 item 2).** The same cycle in f32 on the device: the smoother of
 //!   every level is `fld.wgsl`'s red-black sweep itself, the transfers (D from φ, residual,
 //!   restriction of φ and of the residual, the FAS right-hand side, prolongation) are
