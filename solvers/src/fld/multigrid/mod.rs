@@ -257,7 +257,13 @@
 //!   cloud FLD-LP n = 63: 21 → 21; point source FLD-LP (α = 0.5) n = 63, 127: 10, 11 → 10,
 //!   11 (1.81 → 1.87 s). Solving the coarse problems more exactly changes no cycle count,
 //!   so the growth with n comes from the two-grid step itself (the rediscretised coarse
-//!   operator against the fine one, or the smoother), not from the recursion.
+//!   operator against the fine one, or the smoother), not from the recursion. More
+//!   smoothing (same runs, F-cycles, cycles at n = 31, 63, 127, 255) lowers the counts but
+//!   not their growth: cloud CDA F(2, 2) 10, 12, 14, 16 (+60 %), F(4, 4) 7, 10, 10, 12
+//!   (+71 %; 9.2 s at 255), F(8, 8) 6, 7, 8, 9 (+50 %; 10.5 s); point source FLD-LP F(2, 2)
+//!   9, 10, 11, 13 (+44 %), F(4, 4) 7, 8, 9, 10 (+43 %; 16.2 s at 255 against 14.5 s). What
+//!   grows with n is then the coarse-grid correction's error, which points at the
+//!   rediscretised coarse operator (the Galerkin-type candidate above), not at the smoother.
 //! * **GPU ([`gpu`], issue 15 item 2).** The same cycle in f32 on the device: the smoother of
 //!   every level is `fld.wgsl`'s red-black sweep itself, the transfers (D from φ, residual,
 //!   restriction of φ and of the residual, the FAS right-hand side, prolongation) are
