@@ -647,22 +647,10 @@ impl<T: Real> CpuFld<T> {
 
     fn pass_face<const M: bool>(&mut self, c: usize) -> f64 {
         match self.config.limiter {
+            // CDA's D is fixed at setup: the pass skips the Knudsen number and the limiter.
             FluxLimiter::Cda => self.pass_with::<false, M, _>(c, |_| (T::zero(), T::one())),
-            FluxLimiter::Sum => self.pass_with::<true, M, _>(c, |r| FluxLimiter::Sum.fraction(r)),
-            FluxLimiter::Max => self.pass_with::<true, M, _>(c, |r| FluxLimiter::Max.fraction(r)),
-            FluxLimiter::Kershaw => {
-                self.pass_with::<true, M, _>(c, |r| FluxLimiter::Kershaw.fraction(r))
-            }
-            // n = 2 gets its own (branch-free, vectorising) instance; other n call `powf`.
-            FluxLimiter::Larsen(2.0) => {
-                self.pass_with::<true, M, _>(c, |r| FluxLimiter::Larsen(2.0).fraction(r))
-            }
-            FluxLimiter::Larsen(n) => {
-                self.pass_with::<true, M, _>(c, move |r| FluxLimiter::Larsen(n).fraction(r))
-            }
-            FluxLimiter::LevermorePomraning => {
-                self.pass_with::<true, M, _>(c, |r| FluxLimiter::LevermorePomraning.fraction(r))
-            }
+            // One instance per limiter (Larsen-2 its own, branch-free; other n call `powf`).
+            lim => super::limiter::with_limiter!(lim, |f| self.pass_with::<true, M, _>(c, f)),
         }
     }
 

@@ -37,8 +37,12 @@ use std::fmt;
 use std::str::FromStr;
 
 /// Expands `$body` once per limiter with `$f` bound to a closure that evaluates it as a
-/// fraction ([`FluxLimiter::fraction`]), so a generic loop taking `$f` gets the limiter inlined: the match
-/// runs once per call, not per voxel. Larsen with n ≠ 2 keeps the general `fraction`.
+/// fraction ([`FluxLimiter::fraction`]), so a generic loop taking `$f` gets the limiter
+/// inlined: the match runs once per call, not per voxel. Larsen with n ≠ 2 gets one instance
+/// with n a runtime value (its `powf` calls stay scalar). A catch-all arm calling
+/// `other.fraction(r)` would keep the whole match in the loop: used for the sweep's passes
+/// it took 371 ms per f32 Larsen-3 iteration at 256³ against 275–277 ms this way
+/// (2-vCPU AMD EPYC 7002, alternating runs).
 macro_rules! with_limiter {
     ($lim:expr, |$f:ident| $body:expr) => {
         match $lim {
@@ -66,8 +70,9 @@ macro_rules! with_limiter {
                 let $f = |r| FluxLimiter::LevermorePomraning.fraction(r);
                 $body
             }
-            other => {
-                let $f = move |r| other.fraction(r);
+            // The variant spelled out, so only n is a runtime value (not the whole match).
+            FluxLimiter::Larsen(n) => {
+                let $f = move |r| FluxLimiter::Larsen(n).fraction(r);
                 $body
             }
         }
@@ -232,7 +237,7 @@ fn mul_add<T: Real>(a: T, b: T, c: T) -> T {
 /// Horner's rule for Σ cᵢ xⁱ (unrolled: the length is a constant), with [`mul_add`]. With
 /// positive coefficients and x ≥ 0 every step adds positive terms, so it cannot cancel.
 /// (Estrin's scheme, with a dependency chain ⌈log₂ N⌉ deep instead of N − 1, measured no
-/// faster in the sweep, 41.3–41.8 against 41.2–43.7 ms for f32 LP at 256³, and less
+/// faster in the sweep, 41.3–41.8 against 41.9–43.7 ms for f32 LP at 256³, and less
 /// accurate: 3.61 ulp worst over every positive f32 against 3.28.)
 #[inline(always)]
 fn horner<T: Real>(c: &[f64], x: T) -> T {
@@ -263,16 +268,16 @@ fn horner<T: Real>(c: &[f64], x: T) -> T {
 /// sides are computed on clamped arguments and one is selected, with the one division left
 /// to the caller ([`FluxLimiter::fraction`]), so the sweep's loop vectorises. One red-black
 /// FLD-LP iteration at 256³ on the vacuum cloud (2-vCPU AMD EPYC 7002, `CpuFld::iterate`,
-/// median of 11 in f32 and 7 in f64, an ad-hoc example, five runs each after): f32
+/// median of 11 in f32 and 7 in f64, an ad-hoc example, 7–8 runs each after): f32
 /// 55.3–55.6 → 41.9–43.7 ms (the sum limiter after: 32.1–33.5 ms), f64 96.4 → 75.0–80.5 ms
 /// (sum: 53.8–56.1 ms). The exp had made LP cost 21 ms more than the sum limiter in f32 and
 /// 42 ms in f64. In f64 a (6, 7) fit (1.1·10⁻¹³) ran no faster than (7, 7): 76.0–77.2
 /// against 75.0–77.2 ms, alternating.
-/// * Alternatives measured: the plain ratio P/Q of a (4, 4) minimax fit had 4.30 ulp worst
-///   over every f32 in [10⁻⁴, 10⁸], although an 8400-point emulation had put it at 2.9; the
-///   continued fraction's own convergent through a/27 (two degree-6 polynomials) is
-///   accurate enough but took 44.9–45.4 ms. The damped form is what makes degree (4, 4)
-///   accurate enough.
+/// * Alternatives measured: the plain ratio P/Q of a (4, 4) minimax fit (R_c = 8.5) had
+///   4.30 ulp worst over every f32 in [10⁻⁴, 10⁸], although an 8400-point emulation had put
+///   it at 2.9; the continued fraction's own convergent through a/27 (two degree-6
+///   polynomials; 2.9 ulp in that sampled emulation, never checked exhaustively) took
+///   44.9–45.4 ms. The damped form is what makes degree (4, 4) accurate enough.
 /// * The steps of `horner` are fused multiply-adds (`mul_add`) where the target has
 ///   FMA, so results differ in the last bits between targets with and without it; the
 ///   figures above were measured with FMA (the workspace's target), and the tests check

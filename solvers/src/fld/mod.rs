@@ -271,7 +271,7 @@
 //!   precision: no exp, no 1/R. Worst error 3.28 ulp over every positive f32 (measured
 //!   exhaustively; the tests check every f32 in [2⁻¹⁰, 2²⁷]). (2) Every limiter is a
 //!   fraction ([`limiter::FluxLimiter::fraction`]) and D = θ·num/(den·σ) takes one division
-//!   instead of two. f32 LP 256³: 55.3–55.6 → 41.9–43.7 ms over five runs (a plain P/Q of
+//!   instead of two. f32 LP 256³: 55.3–55.6 → 41.9–43.7 ms over eight runs (a plain P/Q of
 //!   the same degree without (2), dropped for its accuracy: 41.4–42.1); f64 LP 96.4 →
 //!   75.0–80.5 ms. The other limiters moved within the noise
 //!   (f32 sum 33.1–34.0 → 32.1–33.5, Kershaw 35.7–36.5 after; CDA 17.3–17.8 after, untouched),

@@ -1236,6 +1236,11 @@ fn fresh_d_with<L: Fn(f64) -> (f64, f64) + Sync>(
     let [nx, ny, nz] = g.n;
     let plane = nx * ny;
     let inv_2dl = 0.5 / g.dl;
+    // D = F(R)/σ with one division (`FluxLimiter::fraction`).
+    let d_of = |r: f64, s: f64| {
+        let (num, den) = lim(r);
+        num / (den * s)
+    };
     d.par_chunks_mut(plane).enumerate().for_each(|(k, slab)| {
         let one_sided = |i: usize, j: usize| {
             let axis = |x: usize, n: usize| (x.saturating_sub(1), (x + 1).min(n - 1));
@@ -1250,8 +1255,7 @@ fn fresh_d_with<L: Fn(f64) -> (f64, f64) + Sync>(
             let gz = df(g.index(i, j, zl), g.index(i, j, zr), zr - zl);
             let n = g.index(i, j, k);
             let r = (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (sig[n] * phi[n]).max(floor);
-            let (num, den) = lim(r);
-            num / (den * sig[n])
+            d_of(r, sig[n])
         };
         for j in 0..ny {
             let row = &mut slab[j * nx..(j + 1) * nx];
@@ -1277,8 +1281,7 @@ fn fresh_d_with<L: Fn(f64) -> (f64, f64) + Sync>(
                 let gy = (yp[q] - ym[q]) * inv_2dl;
                 let gz = (zp[q] - zm[q]) * inv_2dl;
                 let r = (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (s[q] * p[q]).max(floor);
-                let (num, den) = lim(r);
-                out[q] = num / (den * s[q]);
+                out[q] = d_of(r, s[q]);
             }
         }
     });
