@@ -8,7 +8,7 @@
 
 mod common;
 
-use solvers::fld::multigrid::{CoarseD, CpuMultigrid, Cycle, GpuMultigrid, MgConfig};
+use solvers::fld::multigrid::{CoarseD, CoarseOp, CpuMultigrid, Cycle, GpuMultigrid, MgConfig};
 use solvers::fld::{Boundary, FldConfig, FldSolution, FluxLimiter, GpuFld};
 use solvers::gpu::GpuContext;
 use solvers::{Backend, Medium, Stop, scenes};
@@ -215,7 +215,8 @@ fn gpu_stalls_are_typed() {
 }
 
 /// The method interface reaches the GPU multigrid (`fld:lp:mg`, `cda:mg` on the GPU backend)
-/// and a source-free problem is solved without a cycle; `CoarseD::Restricted` is refused.
+/// and a source-free problem is solved without a cycle; `CoarseD::Restricted` and
+/// `CoarseOp::Galerkin` are refused.
 #[test]
 fn gpu_multigrid_through_solve_with_and_trivial() {
     on_gpu("gpu_multigrid_through_solve_with_and_trivial", |ctx| {
@@ -243,6 +244,16 @@ fn gpu_multigrid_through_solve_with_and_trivial() {
             ..MgConfig::default()
         };
         let e = GpuMultigrid::new(ctx, &empty, &Boundary::Zero, &cfg, &picard).err();
+        assert!(
+            matches!(e, Some(solvers::SolverError::Unsupported(_))),
+            "{e:?}"
+        );
+        // So are the Galerkin coarse levels.
+        let galerkin = MgConfig {
+            coarse_op: CoarseOp::Galerkin,
+            ..MgConfig::default()
+        };
+        let e = GpuMultigrid::new(ctx, &empty, &Boundary::Zero, &cfg, &galerkin).err();
         assert!(
             matches!(e, Some(solvers::SolverError::Unsupported(_))),
             "{e:?}"

@@ -213,6 +213,13 @@ impl<'a> GpuMultigrid<'a> {
         for g in groups(&medium.grid) {
             ctx.check_workgroups("the multigrid transfers", g)?;
         }
+        if mg.coarse_op == super::CoarseOp::Galerkin {
+            return Err(SolverError::Unsupported(
+                "the GPU multigrid rediscretises its coarse levels (CoarseOp::Galerkin is CPU \
+                 only)"
+                    .into(),
+            ));
+        }
         if mg.coarse_d == super::CoarseD::Restricted {
             return Err(SolverError::Unsupported(
                 "the GPU multigrid recomputes the coarse D (CoarseD::Restricted is CPU only)"

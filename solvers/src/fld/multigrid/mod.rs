@@ -264,6 +264,40 @@
 //!   9, 10, 11, 13 (+44 %), F(4, 4) 7, 8, 9, 10 (+43 %; 16.2 s at 255 against 14.5 s). What
 //!   grows with n is then the coarse-grid correction's error, which points at the
 //!   rediscretised coarse operator (the Galerkin-type candidate above), not at the smoother.
+//! * **Galerkin coarse operators ([`CoarseOp::Galerkin`], CDA only; 2026-12-06), first
+//!   measured outside the crate (`scripts/mg-coarse-operators.py`, numpy/scipy/pyamg).** The
+//!   script rebuilds the CDA operator of FLD Eq 32 on the vacuum cloud (σt = 20, albedo 0.9
+//!   inside, vacuum floored at σ_ε = 10⁻³: a D contrast of 2·10⁴) on n = 2^k + 1 grids (every
+//!   axis vertex-coarsened), smooths with symmetric Gauss–Seidel (two sweeps each side), and
+//!   counts cycles to a relative residual of 10⁻⁶. Its rediscretised operator (the harmonic σ
+//!   of this module) with F-cycles accelerated by conjugate gradients takes 10, 13, 15, 18
+//!   cycles at n = 33, 65, 129, 257, close to this module's 10, 12, 14, 16 at n = 31…255 with
+//!   its Krylov depth 3, so it models the growth; plain V-cycles 22, 36, 55 (rate 0.51, 0.67,
+//!   0.76). Galerkin operators A_c = Pᵀ A P (27-point stencils) instead: trilinear P: V 15, 19,
+//!   24 (rate 0.34, 0.43, 0.51), F+CG 8, 9, 10; an operator-dependent P (each axis's odd
+//!   points weighted by their two face couplings, the fine faces coarsened in series
+//!   alongside): V 12, 16, 19 (0.26, 0.37, 0.43), F+CG 7, 8, 9 and 10 at n = 257; weights from
+//!   the Galerkin stencils' collapsed couplings were no better than trilinear (V 16, 20, 25;
+//!   F+CG 8, 8, 9). With σt = 0.2 outside instead of vacuum (contrast 100): rediscretised F+CG
+//!   8, 10, 11, Galerkin with the operator-dependent P 5, 6, 7 (V 7, 9, 10).
+//!   **In the crate** ([`CoarseOp::Galerkin`], module `galerkin`): R A P with this module's
+//!   own transfers, by probing the finer operator; on cell-coarsened axes the linear P reaches
+//!   one coarse voxel further, so the coarse stencil there has radius 2 (up to 125 points),
+//!   smoothed by a multi-colour Gauss–Seidel (red-black is not a Gauss–Seidel for such
+//!   stencils) and solved for the correction. Measured (same 2-vCPU AMD EPYC 7002, an ad-hoc
+//!   driver over [`CpuMultigrid`], F(2, 2), f64, tolerance 10⁻⁶, one run each), cycles
+//!   rediscretised → Galerkin at n = 31, 63, 127, 255 on the Fig 4 cloud, Krylov depth 3: 10,
+//!   12, 14, 16 → 8, 9, 10, 11 (+60 % → +38 % over the range); plain cycles at n = 31, 63: 20,
+//!   29 → 13, 17; the φ of the two agree to 1.4–12·10⁻⁸ relative L2; point source (n = 127):
+//!   5 → 5 cycles. It is not faster: this first version's setup (one probe of the finer
+//!   operator per stencil entry) took 1.84 s at 127³ and 14.7 s at 255³, and its scalar,
+//!   bounds-checked rows make a cycle slower, so the cloud took 4.6 s against 1.0 s at 127³
+//!   and 38 s against 9.4 s at 255³ (setup included); the point source 3.5 s against 0.50 s.
+//!   So the rediscretised levels stay the default. Galerkin operators roughly halve the
+//!   cloud's growth but do not reach issue 15's ≤ 25 % at vacuum contrast either here or in
+//!   the script; for FLD they would need Pᵀ A(D) P once per cycle of the Picard linearisation
+//!   (not built). `galerkin_coarse_levels_cut_cda_cycles_on_the_vacuum_cloud`
+//!   (`tests/fld_multigrid.rs`) pins the agreement with SOR and the cycle cut.
 //! * **GPU ([`gpu`], issue 15 item 2).** The same cycle in f32 on the device: the smoother of
 //!   every level is `fld.wgsl`'s red-black sweep itself, the transfers (D from φ, residual,
 //!   restriction of φ and of the residual, the FAS right-hand side, prolongation) are
@@ -281,6 +315,7 @@
 //!   (2026-12-06) the GPU and the CPU-f32 multigrid (both plain FAS: [`gpu`]) take the same
 //!   number of cycles in all 12 point-source and source-block cases (5–7).
 //!
+mod galerkin;
 pub mod gpu;
 
 pub use gpu::GpuMultigrid;
@@ -337,6 +372,23 @@ pub struct MgConfig {
     pub krylov: usize,
     /// How a coarse level's D is formed (FLD limiters; CDA's D is fixed either way).
     pub coarse_d: CoarseD,
+    /// How the coarse operators are formed: rediscretised (the default) or Galerkin
+    /// (constant limiters on the CPU only).
+    pub coarse_op: CoarseOp,
+}
+
+/// The operators of the coarse levels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CoarseOp {
+    /// The FLD operator rediscretised on each coarse level's restricted medium (with
+    /// [`CoarseSigma`] and [`CoarseD`]): 7-point stencils, the red-black smoother of FLD
+    /// Algorithm 1 on every level. The default.
+    #[default]
+    Rediscretised,
+    /// A_c = R A P with the cycle's own transfers (27-point stencils), solved for the
+    /// correction with an 8-colour Gauss–Seidel smoother. A constant limiter (CDA) on the
+    /// CPU only: FLD's operator changes with φ. Measured in the module docs.
+    Galerkin,
 }
 
 /// The D of the coarse levels of an FLD solve.
@@ -413,6 +465,7 @@ impl Default for MgConfig {
             coarse_sigma: CoarseSigma::Harmonic,
             krylov: 3,
             coarse_d: CoarseD::Auto,
+            coarse_op: CoarseOp::Rediscretised,
         }
     }
 }
@@ -460,6 +513,8 @@ pub struct CpuMultigrid<T> {
     /// A one-thread pool for the levels below `SERIAL_VOXELS` (`None` while in use, or if
     /// it could not be built: then everything runs on the global pool).
     serial: Option<rayon::ThreadPool>,
+    /// [`CoarseOp::Galerkin`]: the operators of levels 1, 2, … (empty otherwise).
+    galerkin: Vec<galerkin::Stencil27>,
 }
 
 impl<T: Real> CpuMultigrid<T> {
@@ -479,6 +534,13 @@ impl<T: Real> CpuMultigrid<T> {
             ));
         }
         mg.validate()?;
+        if mg.coarse_op == CoarseOp::Galerkin && !config.limiter.is_constant() {
+            return Err(SolverError::Unsupported(
+                "Galerkin coarse operators need a constant limiter (CDA): FLD's operator \
+                 changes with phi"
+                    .into(),
+            ));
+        }
         // The Krylov history: 2(k + 1) f64 vectors of the fine grid.
         crate::budget::check(
             format!("multigrid Krylov history (depth {})", mg.krylov),
@@ -582,11 +644,114 @@ impl<T: Real> CpuMultigrid<T> {
             estimate: ErrorEstimate::default(),
             frozen: false,
             serial: rayon::ThreadPoolBuilder::new().num_threads(1).build().ok(),
+            galerkin: Vec::new(),
         };
+        if mg.coarse_op == CoarseOp::Galerkin {
+            solve.build_galerkin()?;
+        }
         if mg.coarse_d == CoarseD::Restricted {
             solve.freeze_coarse_d();
         }
         Ok(solve)
+    }
+
+    /// Builds the Galerkin operators of every coarse level ([`CoarseOp::Galerkin`]; the
+    /// limiter is constant, so the finest level's D is fixed).
+    fn build_galerkin(&mut self) -> Result<(), SolverError> {
+        // The stencils' memory first (radius 2 along an axis once it has been cell-coarsened,
+        // see `galerkin`): a typed error instead of an allocation abort.
+        let mut radius = [1usize; 3];
+        let mut entries = 0u64;
+        for l in 0..self.levels.len() - 1 {
+            let ax = axes(&self.levels[l].grid);
+            for d in 0..3 {
+                if !ax[d].vertex {
+                    radius[d] = 2;
+                }
+            }
+            let per_voxel = radius.iter().map(|r| 2 * r + 1).product::<usize>();
+            entries = entries.saturating_add(crate::budget::bytes(
+                &[self.levels[l + 1].grid.len(), per_voxel],
+                1,
+            ));
+        }
+        crate::budget::check(
+            "multigrid Galerkin coarse stencils",
+            entries.saturating_mul(8),
+        )?;
+        for l in 0..self.levels.len() - 1 {
+            let (fg, cg) = (self.levels[l].grid, self.levels[l + 1].grid);
+            let op = if l == 0 {
+                let lv = &self.levels[0];
+                let d = lv.d_fixed.as_deref().unwrap_or_default();
+                galerkin::Stencil27::galerkin(&fg, &cg, [1; 3], |x, out| {
+                    apply_into(&fg, x, d, &lv.absorb, None, out)
+                })
+            } else {
+                let finer = &self.galerkin[l - 1];
+                galerkin::Stencil27::galerkin(&fg, &cg, finer.radius(), |x, out| {
+                    finer.residual_into(x, None, out)
+                })
+            };
+            self.galerkin.push(op);
+        }
+        Ok(())
+    }
+
+    /// The linear cycle of the Galerkin levels ([`CoarseOp::Galerkin`]) on level `l` ≥ 1:
+    /// improves the correction `e` of A_l e = f.
+    fn galerkin_cycle(&mut self, l: usize, e: &mut [f64], f: &[f64], kind: Cycle) {
+        let op_index = l - 1;
+        let len = self.levels[l].grid.len();
+        let mut scratch = self.take(l);
+        if l + 1 == self.levels.len() {
+            let mut r = self.take(l);
+            let norm = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>();
+            self.galerkin[op_index].residual_into(e, Some(f), &mut r);
+            let r0 = norm(&r);
+            for _ in 0..200 {
+                self.galerkin[op_index].sweep(e, f, &mut scratch);
+                self.work += 0.125f64.powi(l as i32);
+                self.galerkin[op_index].residual_into(e, Some(f), &mut r);
+                let rr = norm(&r);
+                if rr.is_nan() || rr <= 1e-6 * r0 {
+                    break;
+                }
+            }
+            self.give(l, r);
+            self.give(l, scratch);
+            return;
+        }
+        for _ in 0..self.mg.pre {
+            self.galerkin[op_index].sweep(e, f, &mut scratch);
+            self.work += 0.125f64.powi(l as i32);
+        }
+        let mut r = self.take(l);
+        self.galerkin[op_index].residual_into(e, Some(f), &mut r);
+        let (fg, cg) = (self.levels[l].grid, self.levels[l + 1].grid);
+        let mut fc = self.take(l + 1);
+        restrict_fw_into(&fg, &cg, &r, &mut fc);
+        self.give(l, r);
+        let mut ec = self.take(l + 1);
+        ec.par_iter_mut().for_each(|x| *x = 0.0);
+        self.galerkin_visit(l + 1, &mut ec, &fc, kind);
+        if kind == Cycle::F {
+            self.galerkin_visit(l + 1, &mut ec, &fc, Cycle::V);
+        }
+        prolong_add_with(&fg, &cg, &ec, e, false);
+        self.give(l + 1, ec);
+        self.give(l + 1, fc);
+        for _ in 0..self.mg.post {
+            self.galerkin[op_index].sweep(e, f, &mut scratch);
+            self.work += 0.125f64.powi(l as i32);
+        }
+        debug_assert_eq!(scratch.len(), len);
+        self.give(l, scratch);
+    }
+
+    /// [`CpuMultigrid::galerkin_cycle`] on one thread if level `l` is small.
+    fn galerkin_visit(&mut self, l: usize, e: &mut [f64], f: &[f64], kind: Cycle) {
+        self.sized(l, |mg| mg.galerkin_cycle(l, e, f, kind));
     }
 
     /// Switches the coarse levels to [`CoarseD::Restricted`] (their smoothers stop updating
@@ -720,6 +885,27 @@ impl<T: Real> CpuMultigrid<T> {
         let d = self.fresh_d(l, &phi);
         let r = self.residual(l, &phi, &d);
         let (fg, cg) = (self.levels[l].grid, self.levels[l + 1].grid);
+        if !self.galerkin.is_empty() {
+            // [`CoarseOp::Galerkin`] (l = 0): the coarse levels solve for the correction.
+            self.give(l, d);
+            let mut fc = self.take(l + 1);
+            restrict_fw_into(&fg, &cg, &r, &mut fc);
+            self.give(l, r);
+            let mut e = self.take(l + 1);
+            e.par_iter_mut().for_each(|x| *x = 0.0);
+            self.galerkin_visit(l + 1, &mut e, &fc, kind);
+            if kind == Cycle::F {
+                self.galerkin_visit(l + 1, &mut e, &fc, Cycle::V);
+            }
+            prolong_add(&fg, &cg, &e, &mut phi);
+            self.give(l + 1, e);
+            self.give(l + 1, fc);
+            self.set_phi(l, phi);
+            for _ in 0..self.mg.post {
+                self.sweep(l);
+            }
+            return;
+        }
         if self.frozen {
             // Picard coarse levels: D of the coarse level = the mean of the fine D (as the
             // harmonic σ makes it for a constant limiter), fixed for this visit.
@@ -1586,6 +1772,18 @@ fn restrict_separable(
 /// along x (2 terms per fine voxel). *Why*: the per-voxel 2³-term gather took 0.070 s of a
 /// 0.59 s CDA solve at 127³ (FLD-LP 0.156 of 3.59 s; instrumented build).
 fn prolong_add(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64]) {
+    prolong_add_with(g, cg, e, phi, true);
+}
+
+/// `out` = P e, the interpolated coarse vector alone (zero on the fine layer, no projection:
+/// a correction may be negative).
+fn prolong_into(g: &Grid, cg: &Grid, e: &[f64], out: &mut [f64]) {
+    out.par_iter_mut().for_each(|x| *x = 0.0);
+    prolong_add_with(g, cg, e, out, false);
+}
+
+/// [`prolong_add`], projecting onto φ ≥ 0 or not.
+fn prolong_add_with(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64], project: bool) {
     let ax = axes(g);
     let (nx, ny, nz) = (g.n[0], g.n[1], g.n[2]);
     let cnx = cg.n[0];
@@ -1620,7 +1818,7 @@ fn prolong_add(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64]) {
                 for i in 1..nx - 1 {
                     let s: f64 = tx[i].iter().map(|&(ci, wi)| wi * line[ci]).sum();
                     let v = row[i] + s;
-                    row[i] = if v < 0.0 { 0.0 } else { v };
+                    row[i] = if project && v < 0.0 { 0.0 } else { v };
                 }
             }
         });
