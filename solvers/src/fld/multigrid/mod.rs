@@ -272,11 +272,11 @@
 //!   counts cycles to a relative residual of 10⁻⁶. Its rediscretised operator (the harmonic σ
 //!   of this module) with F-cycles accelerated by conjugate gradients takes 10, 13, 15, 18
 //!   cycles at n = 33, 65, 129, 257, close to this module's 10, 12, 14, 16 at n = 31…255 with
-//!   its Krylov depth 3, so it models the growth; plain V-cycles 22, 36, 55 (rate 0.51, 0.67,
-//!   0.76). Galerkin operators A_c = Pᵀ A P (27-point stencils) instead: trilinear P: V 15, 19,
+//!   its Krylov depth 3, so it models the growth; plain V-cycles 22, 36, 55, 76 (rate 0.51,
+//!   0.67, 0.76, 0.82). Galerkin operators A_c = Pᵀ A P (27-point stencils) instead: trilinear P: V 15, 19,
 //!   24 (rate 0.34, 0.43, 0.51), F+CG 8, 9, 10; an operator-dependent P (each axis's odd
 //!   points weighted by their two face couplings, the fine faces coarsened in series
-//!   alongside): V 12, 16, 19 (0.26, 0.37, 0.43), F+CG 7, 8, 9 and 10 at n = 257; weights from
+//!   alongside): V 12, 16, 19, 22 (0.26, 0.37, 0.43, 0.48), F+CG 7, 8, 9, 10; weights from
 //!   the Galerkin stencils' collapsed couplings were no better than trilinear (V 16, 20, 25;
 //!   F+CG 8, 8, 9). With σt = 0.2 outside instead of vacuum (contrast 100): rediscretised F+CG
 //!   8, 10, 11, Galerkin with the operator-dependent P 5, 6, 7 (V 7, 9, 10).
