@@ -702,7 +702,6 @@ impl<T: Real> CpuMultigrid<T> {
     /// improves the correction `e` of A_l e = f.
     fn galerkin_cycle(&mut self, l: usize, e: &mut [f64], f: &[f64], kind: Cycle) {
         let op_index = l - 1;
-        let len = self.levels[l].grid.len();
         let mut scratch = self.take(l);
         if l + 1 == self.levels.len() {
             let mut r = self.take(l);
@@ -728,25 +727,39 @@ impl<T: Real> CpuMultigrid<T> {
         }
         let mut r = self.take(l);
         self.galerkin[op_index].residual_into(e, Some(f), &mut r);
-        let (fg, cg) = (self.levels[l].grid, self.levels[l + 1].grid);
-        let mut fc = self.take(l + 1);
-        restrict_fw_into(&fg, &cg, &r, &mut fc);
-        self.give(l, r);
-        let mut ec = self.take(l + 1);
-        ec.par_iter_mut().for_each(|x| *x = 0.0);
-        self.galerkin_visit(l + 1, &mut ec, &fc, kind);
-        if kind == Cycle::F {
-            self.galerkin_visit(l + 1, &mut ec, &fc, Cycle::V);
-        }
-        prolong_add_with(&fg, &cg, &ec, e, false);
-        self.give(l + 1, ec);
-        self.give(l + 1, fc);
+        self.galerkin_correct(l, r, kind, e, false);
         for _ in 0..self.mg.post {
             self.galerkin[op_index].sweep(e, f, &mut scratch);
             self.work += 0.125f64.powi(l as i32);
         }
-        debug_assert_eq!(scratch.len(), len);
         self.give(l, scratch);
+    }
+
+    /// The coarse-grid correction of the Galerkin levels: restricts level `l`'s residual `r`
+    /// (returned to the pool), solves A_{l+1} e = R r from e = 0 with one cycle of `kind`
+    /// (F: then one V), and adds P e to `x` (projected onto x ≥ 0 for the fine φ, not for a
+    /// correction).
+    fn galerkin_correct(
+        &mut self,
+        l: usize,
+        r: Vec<f64>,
+        kind: Cycle,
+        x: &mut [f64],
+        project: bool,
+    ) {
+        let (fg, cg) = (self.levels[l].grid, self.levels[l + 1].grid);
+        let mut fc = self.take(l + 1);
+        restrict_fw_into(&fg, &cg, &r, &mut fc);
+        self.give(l, r);
+        let mut e = self.take(l + 1);
+        e.par_iter_mut().for_each(|v| *v = 0.0);
+        self.galerkin_visit(l + 1, &mut e, &fc, kind);
+        if kind == Cycle::F {
+            self.galerkin_visit(l + 1, &mut e, &fc, Cycle::V);
+        }
+        prolong_add_with(&fg, &cg, &e, x, project);
+        self.give(l + 1, e);
+        self.give(l + 1, fc);
     }
 
     /// [`CpuMultigrid::galerkin_cycle`] on one thread if level `l` is small.
@@ -888,18 +901,7 @@ impl<T: Real> CpuMultigrid<T> {
         if !self.galerkin.is_empty() {
             // [`CoarseOp::Galerkin`] (l = 0): the coarse levels solve for the correction.
             self.give(l, d);
-            let mut fc = self.take(l + 1);
-            restrict_fw_into(&fg, &cg, &r, &mut fc);
-            self.give(l, r);
-            let mut e = self.take(l + 1);
-            e.par_iter_mut().for_each(|x| *x = 0.0);
-            self.galerkin_visit(l + 1, &mut e, &fc, kind);
-            if kind == Cycle::F {
-                self.galerkin_visit(l + 1, &mut e, &fc, Cycle::V);
-            }
-            prolong_add(&fg, &cg, &e, &mut phi);
-            self.give(l + 1, e);
-            self.give(l + 1, fc);
+            self.galerkin_correct(l, r, kind, &mut phi, true);
             self.set_phi(l, phi);
             for _ in 0..self.mg.post {
                 self.sweep(l);
