@@ -14,16 +14,27 @@ use rayon::prelude::*;
 /// (1: 27 points; 2 along cell-coarsened axes, where P reaches two coarse voxels further);
 /// the Dirichlet layer holds zero (the unknown is a correction).
 #[derive(Debug)]
-pub(super) struct Stencil27 {
+pub(super) struct BoxStencil {
     grid: Grid,
     r: [usize; 3],
     /// Entries per voxel: Π (2 r[d] + 1).
     len: usize,
     /// Row-major: voxel, then offset (x fastest).
     a: Vec<f64>,
+    /// Per slot, the offset's distance in the flat index (for voxels at least r from every
+    /// face, whose rows need no bounds checks).
+    delta: Vec<isize>,
 }
 
-impl Stencil27 {
+/// The stencil radius per axis of R A P onto the coarse grid of `fg`, given the finer
+/// operator's: 1 along vertex-coarsened axes of a radius-1 operator, else 2 (on a
+/// cell-coarsened axis the linear P reaches one coarse voxel further; radius 2 stays 2).
+pub(super) fn coarse_radius(fg: &Grid, fine_r: [usize; 3]) -> [usize; 3] {
+    let ax = super::axes(fg);
+    [0, 1, 2].map(|d| if ax[d].vertex && fine_r[d] == 1 { 1 } else { 2 })
+}
+
+impl BoxStencil {
     /// The slot of offset `o` (each in −r..=r).
     fn slot(&self, o: [isize; 3]) -> usize {
         let w = self.r.map(|r| 2 * r + 1);
@@ -46,15 +57,23 @@ impl Stencil27 {
         fine_r: [usize; 3],
         mut apply: impl FnMut(&[f64], &mut [f64]),
     ) -> Self {
-        let ax = super::axes(fg);
-        let r = [0, 1, 2].map(|d| if ax[d].vertex && fine_r[d] == 1 { 1 } else { 2 });
+        let r = coarse_radius(fg, fine_r);
         let w = r.map(|r| 2 * r + 1);
         let len = w[0] * w[1] * w[2];
+        let (sx, sy) = (cg.n[0] as isize, (cg.n[0] * cg.n[1]) as isize);
+        let delta = (0..len)
+            .map(|s| {
+                let o = [s % w[0], s / w[0] % w[1], s / (w[0] * w[1])];
+                let o = [0, 1, 2].map(|d| o[d] as isize - r[d] as isize);
+                o[2] * sy + o[1] * sx + o[0]
+            })
+            .collect();
         let mut op = Self {
             grid: *cg,
             r,
             len,
             a: vec![0.0; cg.len() * len],
+            delta,
         };
         let [cnx, cny, cnz] = cg.n;
         let mut probe = vec![0.0; cg.len()];
@@ -128,10 +147,18 @@ impl Stencil27 {
     }
 
     /// Σ over the row of voxel `x` times e (offsets that leave the grid have zero entries).
+    /// Voxels at least r from every face take the flat offsets in slot order; the others
+    /// clip the box to the grid (the same slots in the same order, so the same sum).
     fn row_dot(&self, x: [usize; 3], e: &[f64]) -> f64 {
         let g = &self.grid;
         let q = g.index(x[0], x[1], x[2]);
         let row = &self.a[q * self.len..(q + 1) * self.len];
+        if (0..3).all(|d| x[d] >= self.r[d] && x[d] + self.r[d] < g.n[d]) {
+            return row
+                .iter()
+                .zip(&self.delta)
+                .fold(0.0, |s, (a, &dq)| s + a * e[q.wrapping_add_signed(dq)]);
+        }
         let range = |d: usize| {
             let lo = x[d].saturating_sub(self.r[d]);
             let hi = (x[d] + self.r[d]).min(g.n[d] - 1);
@@ -173,8 +200,8 @@ impl Stencil27 {
                     if k == 0 || k + 1 == nz || k % m[2] != c[2] {
                         return;
                     }
-                    for j in (1..ny.saturating_sub(1)).filter(|j| j % m[1] == c[1]) {
-                        for i in (1..nx.saturating_sub(1)).filter(|i| i % m[0] == c[0]) {
+                    for j in colour_range(ny, m[1], c[1]) {
+                        for i in colour_range(nx, m[0], c[0]) {
                             let q = g.index(i, j, k);
                             let diag = self.a[q * self.len + centre];
                             let off = self.row_dot([i, j, k], src) - diag * src[q];
@@ -189,12 +216,19 @@ impl Stencil27 {
                     if k == 0 || k + 1 == nz || k % m[2] != c[2] {
                         return;
                     }
-                    for j in (1..ny.saturating_sub(1)).filter(|j| j % m[1] == c[1]) {
-                        for i in (1..nx.saturating_sub(1)).filter(|i| i % m[0] == c[0]) {
+                    for j in colour_range(ny, m[1], c[1]) {
+                        for i in colour_range(nx, m[0], c[0]) {
                             slab[j * nx + i] = new[j * nx + i];
                         }
                     }
                 });
         }
     }
+}
+
+/// The interior indices 1..n − 1 equal to `c` mod `m`.
+fn colour_range(n: usize, m: usize, c: usize) -> impl Iterator<Item = usize> {
+    // The first index ≥ 1 that is c mod m.
+    let first = 1 + (c + m - 1) % m;
+    (first..n.saturating_sub(1)).step_by(m)
 }

@@ -293,6 +293,9 @@
 //!   operator per stencil entry) took 1.84 s at 127³ and 14.7 s at 255³, and its scalar,
 //!   bounds-checked rows make a cycle slower, so the cloud took 4.6 s against 1.0 s at 127³
 //!   and 38 s against 9.4 s at 255³ (setup included); the point source 3.5 s against 0.50 s.
+//!   With flat offsets for the rows away from the faces (review; φ and residuals
+//!   bit-identical), one run: setup 1.72 and 13.4 s, the cloud 4.00 s against 1.02 s at 127³
+//!   and 32.6 s against 8.85 s at 255³, the point source 3.15 s against 0.51 s.
 //!   So the rediscretised levels stay the default. Galerkin operators roughly halve the
 //!   cloud's growth but do not reach issue 15's ≤ 25 % at vacuum contrast either here or in
 //!   the script; for FLD they would need Pᵀ A(D) P once per cycle of the Picard linearisation
@@ -385,9 +388,10 @@ pub enum CoarseOp {
     /// Algorithm 1 on every level. The default.
     #[default]
     Rediscretised,
-    /// A_c = R A P with the cycle's own transfers (27-point stencils), solved for the
-    /// correction with an 8-colour Gauss–Seidel smoother. A constant limiter (CDA) on the
-    /// CPU only: FLD's operator changes with φ. Measured in the module docs.
+    /// A_c = R A P with the cycle's own transfers (27-point stencils, up to 125 along
+    /// cell-coarsened axes), solved for the correction with a multi-colour Gauss–Seidel
+    /// smoother. A constant limiter (CDA) on the CPU only: FLD's operator changes with φ.
+    /// Measured in the module docs.
     Galerkin,
 }
 
@@ -514,7 +518,7 @@ pub struct CpuMultigrid<T> {
     /// it could not be built: then everything runs on the global pool).
     serial: Option<rayon::ThreadPool>,
     /// [`CoarseOp::Galerkin`]: the operators of levels 1, 2, … (empty otherwise).
-    galerkin: Vec<galerkin::Stencil27>,
+    galerkin: Vec<galerkin::BoxStencil>,
 }
 
 impl<T: Real> CpuMultigrid<T> {
@@ -658,17 +662,11 @@ impl<T: Real> CpuMultigrid<T> {
     /// Builds the Galerkin operators of every coarse level ([`CoarseOp::Galerkin`]; the
     /// limiter is constant, so the finest level's D is fixed).
     fn build_galerkin(&mut self) -> Result<(), SolverError> {
-        // The stencils' memory first (radius 2 along an axis once it has been cell-coarsened,
-        // see `galerkin`): a typed error instead of an allocation abort.
+        // The stencils' memory first: a typed error instead of an allocation abort.
         let mut radius = [1usize; 3];
         let mut entries = 0u64;
         for l in 0..self.levels.len() - 1 {
-            let ax = axes(&self.levels[l].grid);
-            for d in 0..3 {
-                if !ax[d].vertex {
-                    radius[d] = 2;
-                }
-            }
+            radius = galerkin::coarse_radius(&self.levels[l].grid, radius);
             let per_voxel = radius.iter().map(|r| 2 * r + 1).product::<usize>();
             entries = entries.saturating_add(crate::budget::bytes(
                 &[self.levels[l + 1].grid.len(), per_voxel],
@@ -684,12 +682,12 @@ impl<T: Real> CpuMultigrid<T> {
             let op = if l == 0 {
                 let lv = &self.levels[0];
                 let d = lv.d_fixed.as_deref().unwrap_or_default();
-                galerkin::Stencil27::galerkin(&fg, &cg, [1; 3], |x, out| {
+                galerkin::BoxStencil::galerkin(&fg, &cg, [1; 3], |x, out| {
                     apply_into(&fg, x, d, &lv.absorb, None, out)
                 })
             } else {
                 let finer = &self.galerkin[l - 1];
-                galerkin::Stencil27::galerkin(&fg, &cg, finer.radius(), |x, out| {
+                galerkin::BoxStencil::galerkin(&fg, &cg, finer.radius(), |x, out| {
                     finer.residual_into(x, None, out)
                 })
             };
@@ -757,7 +755,7 @@ impl<T: Real> CpuMultigrid<T> {
         if kind == Cycle::F {
             self.galerkin_visit(l + 1, &mut e, &fc, Cycle::V);
         }
-        prolong_add_with(&fg, &cg, &e, x, project);
+        prolong_add(&fg, &cg, &e, x, project);
         self.give(l + 1, e);
         self.give(l + 1, fc);
     }
@@ -955,7 +953,7 @@ impl<T: Real> CpuMultigrid<T> {
         let mut e = self.take(l + 1);
         self.levels[l + 1].fld.mg_phi_into(&mut e);
         e.par_iter_mut().zip(&phi_c0).for_each(|(a, b)| *a -= b);
-        prolong_add(&fg, &cg, &e, &mut phi);
+        prolong_add(&fg, &cg, &e, &mut phi, true);
         self.give(l + 1, e);
         self.give(l + 1, phi_c0);
         self.set_phi(l, phi);
@@ -1768,24 +1766,13 @@ fn restrict_separable(
     );
 }
 
-/// φ += the interpolated coarse correction (zero on the coarse Dirichlet layer),
-/// projected onto φ ≥ 0 as the smoother's update is. Per fine row, the coarse rows it reads
+/// φ += the interpolated coarse correction (zero on the coarse Dirichlet layer), with
+/// `project` projected onto φ ≥ 0 as the smoother's update is (without, for a correction that
+/// may be negative: the Galerkin levels). Per fine row, the coarse rows it reads
 /// are first combined (z and y weights) into one coarse line, which is then interpolated
 /// along x (2 terms per fine voxel). *Why*: the per-voxel 2³-term gather took 0.070 s of a
 /// 0.59 s CDA solve at 127³ (FLD-LP 0.156 of 3.59 s; instrumented build).
-fn prolong_add(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64]) {
-    prolong_add_with(g, cg, e, phi, true);
-}
-
-/// `out` = P e, the interpolated coarse vector alone (zero on the fine layer, no projection:
-/// a correction may be negative).
-fn prolong_into(g: &Grid, cg: &Grid, e: &[f64], out: &mut [f64]) {
-    out.par_iter_mut().for_each(|x| *x = 0.0);
-    prolong_add_with(g, cg, e, out, false);
-}
-
-/// [`prolong_add`], projecting onto φ ≥ 0 or not.
-fn prolong_add_with(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64], project: bool) {
+fn prolong_add(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64], project: bool) {
     let ax = axes(g);
     let (nx, ny, nz) = (g.n[0], g.n[1], g.n[2]);
     let cnx = cg.n[0];
@@ -1824,6 +1811,12 @@ fn prolong_add_with(g: &Grid, cg: &Grid, e: &[f64], phi: &mut [f64], project: bo
                 }
             }
         });
+}
+
+/// `out` = P e, the interpolated coarse vector alone (zero on the fine layer, not projected).
+fn prolong_into(g: &Grid, cg: &Grid, e: &[f64], out: &mut [f64]) {
+    out.par_iter_mut().for_each(|x| *x = 0.0);
+    prolong_add(g, cg, e, out, false);
 }
 
 /// Coarse Dirichlet layer: φ = base + e, with e = −⅓ of the correction at the nearest
