@@ -92,7 +92,8 @@ impl Table {
         self.rows.is_empty()
     }
 
-    fn column(&self, name: &str) -> Option<usize> {
+    /// The index of column `name`, if the table has it.
+    pub fn column(&self, name: &str) -> Option<usize> {
         self.header.iter().position(|h| h == name)
     }
 

@@ -39,6 +39,9 @@ fn multigrid_reaches_sors_solution_in_the_point_source_experiment() {
     assert_eq!(rows.len(), 3 * 2 * 2);
     for r in &rows {
         assert!(r.converged, "{r:?}");
+        // Both solvers mark when R̄/j̄ first fell below the tolerance, within their seconds.
+        let t = r.seconds_to_tolerance.unwrap_or(f64::NAN);
+        assert!(t > 0.0 && t <= r.seconds, "{r:?}");
     }
     for m in rows.iter().filter(|r| r.solver == "multigrid") {
         let s = rows
@@ -70,7 +73,13 @@ fn multigrid_reaches_sors_solution_in_the_point_source_experiment() {
     }
     let csv = std::fs::read_to_string(dir.join("runs.csv")).unwrap();
     let header = csv.lines().next().unwrap();
-    for col in ["solver", "work_units", "stop", "rel_l2_vs_first_solver"] {
+    for col in [
+        "solver",
+        "work_units",
+        "stop",
+        "rel_l2_vs_first_solver",
+        "seconds_to_tolerance",
+    ] {
         assert!(header.split(',').any(|c| c == col), "runs.csv lacks {col}");
     }
     let _ = std::fs::remove_dir_all(&dir);

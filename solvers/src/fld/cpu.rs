@@ -369,22 +369,27 @@ impl<T: Real> CpuFld<T> {
         };
         let [nx, ny, _] = g.n;
         let h = self.h;
-        // Packed slab k of colour c holds, per row j, the voxels i = 2m + s, s = (c + j + k) & 1.
-        for (c, fc) in f.iter_mut().enumerate() {
-            fc.par_chunks_mut(ny * h).enumerate().for_each(|(k, slab)| {
+        let [f0, f1] = f;
+        // Packed slab k of colour c holds, per row j, the voxels i = 2m + s, s = (c + j + k) & 1:
+        // each natural row is split into its even and odd voxels in one pass (both colours).
+        f0.par_chunks_mut(ny * h)
+            .zip(f1.par_chunks_mut(ny * h))
+            .enumerate()
+            .for_each(|(k, (s0, s1))| {
                 for j in 0..ny {
-                    let s = (c + j + k) & 1;
-                    let row = &mut slab[j * h..(j + 1) * h];
-                    let base = g.index(0, j, k);
-                    for (m, x) in row.iter_mut().enumerate() {
-                        let i = 2 * m + s;
-                        if i < nx {
-                            *x = T::c(v[base + i] * scale);
-                        }
+                    let (r0, r1) = (&mut s0[j * h..(j + 1) * h], &mut s1[j * h..(j + 1) * h]);
+                    let (even, odd) = if (j + k) & 1 == 0 { (r0, r1) } else { (r1, r0) };
+                    let row = &v[g.index(0, j, k)..g.index(0, j, k) + nx];
+                    let pairs = row.chunks_exact(2);
+                    if let [last] = pairs.remainder() {
+                        even[nx / 2] = T::c(last * scale);
+                    }
+                    for ((p, e), o) in pairs.zip(even.iter_mut()).zip(odd.iter_mut()) {
+                        *e = T::c(p[0] * scale);
+                        *o = T::c(p[1] * scale);
                     }
                 }
             });
-        }
     }
 
     /// Runs one red-black iteration and returns the normalised residual R̄/j̄ measured during it.
@@ -414,6 +419,7 @@ impl<T: Real> CpuFld<T> {
     /// (for progress bars and residual plots).
     pub fn solve_observed(mut self, mut observer: impl FnMut(usize, f64)) -> FldSolution<T> {
         let t0 = Instant::now();
+        let mut reached = self.trivial.then_some(0.0);
         let status = if self.trivial {
             Stop::Converged
         } else {
@@ -425,13 +431,16 @@ impl<T: Real> CpuFld<T> {
                 None,
                 || {
                     let r = self.iterate();
+                    if r < tol && reached.is_none() {
+                        reached = Some(t0.elapsed().as_secs_f64());
+                    }
                     (self.iterations, r)
                 },
                 &mut observer,
             )
         };
         let seconds = t0.elapsed().as_secs_f64();
-        super::solution(
+        let mut sol = super::solution(
             self.grid,
             self.phi(),
             std::mem::take(&mut self.residuals),
@@ -440,7 +449,9 @@ impl<T: Real> CpuFld<T> {
             seconds,
             self.setup_seconds,
             Timer::WallClock,
-        )
+        );
+        sol.trace.seconds_to_tolerance = reached;
+        sol
     }
 
     /// The current φ in natural layout (x fastest), in the caller's units.
@@ -505,9 +516,19 @@ impl<T: Real> CpuFld<T> {
             .enumerate()
             .for_each(|(k, slab)| {
                 for j in 0..ny {
-                    for i in 0..nx {
-                        let (c, p) = packed_index(g, h, i, j, k);
-                        slab[j * nx + i] = map(f[c][p]);
+                    // Voxel i of row (j, k) has colour (i + j + k) & 1 and packed slot i/2:
+                    // the row interleaves the two colours' packed rows.
+                    let start = (k * ny + j) * h;
+                    let (r0, r1) = (&f[0][start..start + h], &f[1][start..start + h]);
+                    let (even, odd) = if (j + k) & 1 == 0 { (r0, r1) } else { (r1, r0) };
+                    let row = &mut slab[j * nx..(j + 1) * nx];
+                    let mut pairs = row.chunks_exact_mut(2);
+                    for ((p, &e), &o) in pairs.by_ref().zip(even).zip(odd) {
+                        p[0] = map(e);
+                        p[1] = map(o);
+                    }
+                    if let [last] = pairs.into_remainder() {
+                        *last = map(even[nx / 2]);
                     }
                 }
             });

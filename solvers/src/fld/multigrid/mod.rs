@@ -239,6 +239,38 @@
 //!   11, 14, 16 (1.01 → 1.09 s) and FLD-LP 14, 21, 54 → 16, 24, 80 (11.3 → 12.4 s); F(3, 3)
 //!   and F(1, 1) on the FLD-LP point source: 8, 9, 10 cycles (2.64 s) and 10, 11, 15 (2.39 s).
 //!   F(2, 2) stays.
+//! * **First touch in parallel, one-pass packing, and the like-for-like time (2026-12-06,
+//!   another machine: 2-vCPU AMD EPYC family 26 model 2 (Zen 5), 32 MiB L3, triad 68–70 GB/s
+//!   in `cargo bench -p benches --bench diffusion` the same session).** `perf` of the 255³
+//!   CDA point-source solve (cycles 2–5) put 20 % of the samples in page faults: every new
+//!   fine vector (the Krylov history alone takes 8 as it fills) was zeroed by one thread's
+//!   `resize`. New vectors are now zeroed by every thread (`par_zeroed`) and the
+//!   packed/natural copies (`CpuFld::mg_set`, `CpuFld::unpack_into`) split and interleave a
+//!   row's two colours in one pass instead of a per-voxel index loop (per colour, for the
+//!   packing): φ bit-identical (hashes of φ on the 255³ point source, the 127³ FLD-LP point
+//!   source, the 95³ CDA and 63³ FLD-LP clouds against the build before), 255³ CDA solve
+//!   2.55–2.81 → 2.17–2.26 s (an ad-hoc driver, with the teardown). SOR stops when R̄/j̄
+//!   falls below the tolerance; multigrid's stop also waits for its error estimate (the 5th
+//!   CDA cycle here: R̄/j̄ 4.0·10⁻⁷ after the 4th), so both now record the seconds until
+//!   R̄/j̄ itself first fell below the tolerance (`FldTrace::seconds_to_tolerance`, the
+//!   `seconds_to_tolerance` columns of `point_source` and `multigrid_scaling`), the
+//!   comparison issue 15's acceptance 3 names. Measured (`point_source --boundary zero
+//!   --tolerance 1e-6 --solver sor,multigrid`, one run each, every Fig 5 albedo 0.1, 0.3,
+//!   0.5, 0.7, 0.9, 0.99), SOR seconds / multigrid seconds (to R̄/j̄ < tol; full stop):
+//!   255³ CDA 16.46/1.488 (11.1×; 8.8×), 16.19/1.443 (11.2×; 9.0×), 17.11/1.447 (11.8×;
+//!   9.4×), 17.28/1.511 (11.4×; 9.1×), 17.49/1.447 (12.1×; 9.6×), 17.70/1.430 (12.4×;
+//!   9.8×), 543–566 SOR iterations against 5 cycles (4 to the tolerance);
+//!   255³ FLD-LP at α = 0.5: SOR 2078 iterations 123.06 s against 13 cycles 8.08 s, 6.83 s to
+//!   the tolerance (18.0×; 15.2×) (α = 0.99 was 32× in the earlier bullet);
+//!   127³ CDA (5.0×; 4.0×), (3.6×; 3.0×), (4.4×; 3.5×), (4.6×; 3.6×), (4.7×; 3.7×), (4.5×;
+//!   3.5×): SOR 0.78–0.87 s for 274–284 iterations, multigrid 0.17–0.22 s to the tolerance;
+//!   127³ FLD-LP (6.6×; 6.0×), (3.3×; 3.0×), (3.5×; 3.2×), (3.9×; 3.5×), (4.6×; 4.2×), (6.2×;
+//!   5.7×): SOR 2.80–5.77 s for 472–974 iterations, multigrid 0.85–0.93 s (11 cycles) to the
+//!   tolerance; φ within 0.4–3.6·10⁻⁶ relative L2 of SOR's. So at 255³ the ≥ 10× of
+//!   acceptance 3 holds for CDA at every albedo (to the tolerance), and at 127³ it does not:
+//!   there SOR's 274–284 sweeps against 4 cycles' ≈ 21 work units cap the ratio near 13× even
+//!   for free transfers, and a work unit of multigrid still costs about 2.7–2.8× an SOR sweep
+//!   of wall time (residuals, transfers, packing, the Krylov history).
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; at n = 127 with V cycles, 84 of
 //!   108 were Picard cycles after the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
@@ -813,12 +845,18 @@ impl<T: Real> CpuMultigrid<T> {
         &self.residuals
     }
 
-    /// A spare vector of level `l`'s length (stale values) from its pool.
+    /// A spare vector of level `l`'s length (stale values) from its pool, or a new one
+    /// zeroed by every thread ([`par_zeroed`]) when the pool is empty.
     fn take(&mut self, l: usize) -> Vec<f64> {
         let lv = &mut self.levels[l];
-        let mut v = lv.pool.pop().unwrap_or_default();
-        v.resize(lv.grid.len(), 0.0);
-        v
+        let len = lv.grid.len();
+        match lv.pool.pop() {
+            Some(mut v) => {
+                v.resize(len, 0.0);
+                v
+            }
+            None => par_zeroed(len),
+        }
     }
 
     /// Returns `v` (a vector, or the optional D of [`CpuMultigrid::fresh_d`]) to level `l`'s
@@ -1069,6 +1107,7 @@ impl<T: Real> CpuMultigrid<T> {
     /// non-finite residual; `observer(cycle, residual)` after every cycle.
     pub fn solve_observed(mut self, mut observer: impl FnMut(usize, f64)) -> FldSolution<T> {
         let t0 = Instant::now();
+        let mut reached = self.trivial.then_some(0.0);
         let status = if self.trivial {
             Stop::Converged
         } else {
@@ -1088,6 +1127,9 @@ impl<T: Real> CpuMultigrid<T> {
                     Some(stall),
                     || {
                         let (r, e) = self.cycle_estimate();
+                        if r < tol && reached.is_none() {
+                            reached = Some(t0.elapsed().as_secs_f64());
+                        }
                         residual.set(r);
                         (self.cycles, r.max(e))
                     },
@@ -1119,8 +1161,17 @@ impl<T: Real> CpuMultigrid<T> {
             Timer::WallClock,
         );
         sol.trace.work_units = self.work;
+        sol.trace.seconds_to_tolerance = reached;
         sol
     }
+}
+
+/// A zeroed vector of `len` values written by every thread of the pool. *Why*: a fresh
+/// fine-grid vector's pages are faulted in and cleared by the kernel on first touch, and a
+/// serial `resize` did that on one thread: the Krylov history alone takes 8 fine vectors as
+/// it fills (1.1 GB at 255³), so most of a 255³ solve's page faults fell in its first cycles.
+fn par_zeroed(len: usize) -> Vec<f64> {
+    (0..len).into_par_iter().map(|_| 0.0).collect()
 }
 
 /// Levels with fewer voxels than this (about 34³) run on one thread, inside a one-thread
@@ -1348,7 +1399,7 @@ impl ErrorEstimate {
                 .iter()
                 .fold((0.0, 0.0), |s, x| (s.0 + x.0, s.1 + x.1)),
             None => {
-                self.previous = Some(phi.to_vec());
+                self.previous = Some(phi.par_iter().copied().collect());
                 (0.0, 0.0)
             }
         };
