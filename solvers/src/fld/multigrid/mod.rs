@@ -260,14 +260,16 @@
 //!   255³ CDA 16.46/1.488 (11.1×; 8.8×), 16.19/1.443 (11.2×; 9.0×), 17.11/1.447 (11.8×;
 //!   9.4×), 17.28/1.511 (11.4×; 9.1×), 17.49/1.447 (12.1×; 9.6×), 17.70/1.430 (12.4×;
 //!   9.8×), 543–566 SOR iterations against 5 cycles (4 to the tolerance);
-//!   255³ FLD-LP at α = 0.5: SOR 2078 iterations 123.06 s against 13 cycles 8.08 s, 6.83 s to
-//!   the tolerance (18.0×; 15.2×) (α = 0.99 was 32× in the earlier bullet);
+//!   255³ FLD-LP 127.90/9.058 (14.1×; 12.3×), 129.33/9.130 (14.2×; 12.4×), 123.06/6.83
+//!   (18.0×; 15.2×), 116.34/8.535 (13.6×; 11.9×), 176.81/8.665 (20.4×; 17.8×), 249.84/8.104
+//!   (30.8×; 28.6×), 1961–4050 SOR iterations against 13 cycles (11 at α = 0.99);
 //!   127³ CDA (5.0×; 4.0×), (3.6×; 3.0×), (4.4×; 3.5×), (4.6×; 3.6×), (4.7×; 3.7×), (4.5×;
 //!   3.5×): SOR 0.78–0.87 s for 274–284 iterations, multigrid 0.17–0.22 s to the tolerance;
 //!   127³ FLD-LP (6.6×; 6.0×), (3.3×; 3.0×), (3.5×; 3.2×), (3.9×; 3.5×), (4.6×; 4.2×), (6.2×;
 //!   5.7×): SOR 2.80–5.77 s for 472–974 iterations, multigrid 0.85–0.93 s (11 cycles) to the
 //!   tolerance; φ within 0.4–3.6·10⁻⁶ relative L2 of SOR's. So at 255³ the ≥ 10× of
-//!   acceptance 3 holds for CDA at every albedo (to the tolerance), and at 127³ it does not:
+//!   acceptance 3 holds for CDA and FLD-LP at every albedo (to the tolerance; FLD-LP also by
+//!   the full stop, CDA there 8.8–9.8×), and at 127³ it does not:
 //!   there SOR's 274–284 sweeps against 4 cycles' ≈ 21 work units cap the ratio near 13× even
 //!   for free transfers, and a work unit of multigrid still costs about 2.7–2.8× an SOR sweep
 //!   of wall time (residuals, transfers, packing, the Krylov history).
