@@ -414,8 +414,9 @@ fn galerkin_coarse_levels_cut_cda_cycles_on_the_vacuum_cloud() {
 
 /// `FldTrace::seconds_to_tolerance` (issue 15's like-for-like time to R̄/j̄ < tolerance):
 /// recorded at the first step whose R̄/j̄ is below the tolerance, within the solve's seconds,
-/// strictly before the end when multigrid's error estimate kept it cycling past that step, and
-/// absent when the tolerance was never reached.
+/// strictly before the end where multigrid's error estimate kept it cycling past that step
+/// (it does here: SOR stops at that step, multigrid one or more cycles later), and absent when
+/// the tolerance was never reached.
 #[test]
 fn seconds_to_tolerance_marks_the_first_step_below_the_tolerance() {
     let (ps, _) = scenes::point_source::<f64>(33, 4.0, 0.5).unwrap();
@@ -430,15 +431,17 @@ fn seconds_to_tolerance_marks_the_first_step_below_the_tolerance() {
         let first = s.residuals().iter().position(|&r| r < tol).unwrap() + 1;
         let t = s.trace.seconds_to_tolerance.unwrap();
         assert!(t > 0.0 && t <= s.seconds, "{name}: {t} of {} s", s.seconds);
-        if first < s.steps {
+        if name == "sor" {
+            assert_eq!(
+                first, s.steps,
+                "SOR stops at the first step below the tolerance"
+            );
+        } else {
             // Multigrid went on for its error estimate: the mark sits before the end.
-            assert!(t < s.seconds, "{name}: step {first} of {}", s.steps);
+            assert!(first < s.steps, "multigrid: {:?}", s.residuals());
+            assert!(t < s.seconds, "multigrid: step {first} of {}", s.steps);
         }
     }
-    assert_eq!(
-        sor.residuals().iter().position(|&r| r < tol),
-        Some(sor.steps - 1)
-    );
     let capped = mg(
         &ps,
         &cfg.clone().with_tolerance(1e-14).with_max_iterations(1),

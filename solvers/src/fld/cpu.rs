@@ -379,7 +379,8 @@ impl<T: Real> CpuFld<T> {
                 for j in 0..ny {
                     let (r0, r1) = (&mut s0[j * h..(j + 1) * h], &mut s1[j * h..(j + 1) * h]);
                     let (even, odd) = if (j + k) & 1 == 0 { (r0, r1) } else { (r1, r0) };
-                    let row = &v[g.index(0, j, k)..g.index(0, j, k) + nx];
+                    let base = g.index(0, j, k);
+                    let row = &v[base..base + nx];
                     let pairs = row.chunks_exact(2);
                     if let [last] = pairs.remainder() {
                         even[nx / 2] = T::c(last * scale);

@@ -3,8 +3,9 @@
 //! (27 points) or 2 along cell-coarsened axes, solved for the correction (the coarse problem
 //! is linear) with a multi-colour Gauss–Seidel smoother ([`super::CoarseOp::Galerkin`];
 //! measured in the module docs of [`super`]). A first version, written for the measurement:
-//! the rows are scalar loops with bounds checks and the setup probes the finer operator
-//! once per stencil entry, so it is slower than the rediscretised levels (module docs).
+//! the rows are scalar (those within r of a face clip the box with bounds checks) and the
+//! setup probes the finer operator once per stencil entry, so it is slower than the
+//! rediscretised levels (module docs).
 
 use super::{prolong_into, restrict_fw_into};
 use crate::Grid;

@@ -242,14 +242,16 @@
 //! * **First touch in parallel, one-pass packing, and the like-for-like time (2026-12-06,
 //!   another machine: 2-vCPU AMD EPYC family 26 model 2 (Zen 5), 32 MiB L3, triad 68–70 GB/s
 //!   in `cargo bench -p benches --bench diffusion` the same session).** `perf` of the 255³
-//!   CDA point-source solve (cycles 2–5) put 20 % of the samples in page faults: every new
-//!   fine vector (the Krylov history alone takes 8 as it fills) was zeroed by one thread's
+//!   CDA point-source solve (cycles 2–5) put 12 % of the samples in first-touch page faults
+//!   (and 8 % in the teardown's `munmap`, after the solve's clock stops): every new fine
+//!   vector (the Krylov history alone takes 8 as it fills) was zeroed by one thread's
 //!   `resize`. New vectors are now zeroed by every thread (`par_zeroed`) and the
 //!   packed/natural copies (`CpuFld::mg_set`, `CpuFld::unpack_into`) split and interleave a
 //!   row's two colours in one pass instead of a per-voxel index loop (per colour, for the
 //!   packing): φ bit-identical (hashes of φ on the 255³ point source, the 127³ FLD-LP point
 //!   source, the 95³ CDA and 63³ FLD-LP clouds against the build before), 255³ CDA solve
-//!   2.55–2.81 → 2.17–2.26 s (an ad-hoc driver, with the teardown). SOR stops when R̄/j̄
+//!   (an ad-hoc driver, with the teardown) 2.56–2.81 s over 6 runs before, 2.25–2.27 s over
+//!   3 with the parallel zeroing alone, 2.17–2.26 s over 2 with the packing too. SOR stops when R̄/j̄
 //!   falls below the tolerance; multigrid's stop also waits for its error estimate (the 5th
 //!   CDA cycle here: R̄/j̄ 4.0·10⁻⁷ after the 4th), so both now record the seconds until
 //!   R̄/j̄ itself first fell below the tolerance (`FldTrace::seconds_to_tolerance`, the
@@ -741,8 +743,7 @@ impl<T: Real> CpuMultigrid<T> {
             self.galerkin[op_index].residual_into(e, Some(f), &mut r);
             let r0 = norm(&r);
             for _ in 0..200 {
-                self.galerkin[op_index].sweep(e, f, &mut scratch);
-                self.work += 0.125f64.powi(l as i32);
+                self.galerkin_sweep(l, e, f, &mut scratch);
                 self.galerkin[op_index].residual_into(e, Some(f), &mut r);
                 let rr = norm(&r);
                 if rr.is_nan() || rr <= 1e-6 * r0 {
@@ -754,17 +755,21 @@ impl<T: Real> CpuMultigrid<T> {
             return;
         }
         for _ in 0..self.mg.pre {
-            self.galerkin[op_index].sweep(e, f, &mut scratch);
-            self.work += 0.125f64.powi(l as i32);
+            self.galerkin_sweep(l, e, f, &mut scratch);
         }
         let mut r = self.take(l);
         self.galerkin[op_index].residual_into(e, Some(f), &mut r);
         self.galerkin_correct(l, r, kind, e, false);
         for _ in 0..self.mg.post {
-            self.galerkin[op_index].sweep(e, f, &mut scratch);
-            self.work += 0.125f64.powi(l as i32);
+            self.galerkin_sweep(l, e, f, &mut scratch);
         }
         self.give(l, scratch);
+    }
+
+    /// One Gauss–Seidel sweep of level `l`'s Galerkin operator, counted as work.
+    fn galerkin_sweep(&mut self, l: usize, e: &mut [f64], f: &[f64], scratch: &mut [f64]) {
+        self.galerkin[l - 1].sweep(e, f, scratch);
+        self.count_sweep(l);
     }
 
     /// The coarse-grid correction of the Galerkin levels: restricts level `l`'s residual `r`
@@ -888,9 +893,14 @@ impl<T: Real> CpuMultigrid<T> {
             .unwrap_or_default()
     }
 
+    /// Adds one smoothing sweep on level `l` to the work: 8^(−l) fine sweeps.
+    fn count_sweep(&mut self, l: usize) {
+        self.work += 0.125f64.powi(l as i32);
+    }
+
     fn sweep(&mut self, l: usize) -> f64 {
         let r = self.levels[l].fld.mg_sweep();
-        self.work += 0.125f64.powi(l as i32);
+        self.count_sweep(l);
         if l > 0 && self.mg.extrapolated_layer {
             let lv = &mut self.levels[l];
             let mut phi = lv.fld.mg_phi();
