@@ -269,11 +269,13 @@
 //!   3.5×): SOR 0.78–0.87 s for 274–284 iterations, multigrid 0.17–0.22 s to the tolerance;
 //!   127³ FLD-LP (6.6×; 6.0×), (3.3×; 3.0×), (3.5×; 3.2×), (3.9×; 3.5×), (4.6×; 4.2×), (6.2×;
 //!   5.7×): SOR 2.80–5.77 s for 472–974 iterations, multigrid 0.85–0.93 s (11 cycles) to the
-//!   tolerance; φ within 0.4–3.6·10⁻⁶ relative L2 of SOR's. So at 255³ the ≥ 10× of
+//!   tolerance (10 cycles, 52.3 work units); φ within 0.4–4.3·10⁻⁶ relative L2 of SOR's at
+//!   both sizes (the largest: 255³ FLD-LP, α = 0.99). So at 255³ the ≥ 10× of
 //!   acceptance 3 holds for CDA and FLD-LP at every albedo (to the tolerance; FLD-LP also by
 //!   the full stop, CDA there 8.8–9.8×), and at 127³ it does not:
-//!   there SOR's 274–284 sweeps against 4 cycles' ≈ 21 work units cap the ratio near 13× even
-//!   for free transfers, and a work unit of multigrid still costs about 2.7–2.8× an SOR sweep
+//!   there SOR's 274–284 sweeps against 4 cycles' 20.9 work units cap the ratio near 13× for
+//!   CDA even for free transfers (FLD-LP: 472–974 sweeps against 52.3 work units, 9–19×),
+//!   and a work unit of multigrid still costs 2.6–3.6 (CDA) and 2.6–3.0 (FLD-LP) SOR sweeps
 //!   of wall time (residuals, transfers, packing, the Krylov history).
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; at n = 127 with V cycles, 84 of
