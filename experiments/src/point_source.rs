@@ -65,10 +65,13 @@ pub struct Args {
     #[arg(long, default_value_t = 20_000, value_parser = crate::common::count_usize)]
     pub max_iterations: usize,
     /// Solvers, each run on every case: `sor` (red-black SOR, FLD Algorithm 1, the
-    /// reference) and/or `multigrid` (FAS F(2,2), `solvers::fld::multigrid`, CPU and GPU).
-    /// The plots and the error tables use the first; `rel_l2_vs_first_solver` in `runs.csv`
-    /// compares the others with it.
-    #[arg(long, value_delimiter = ',', value_enum, default_value = "sor")]
+    /// reference), `multigrid` (FAS F(2,2), `solvers::fld::multigrid`, CPU and GPU) and/or
+    /// `auto` (multigrid from 100³ voxels for CDA and 63³ for FLD, SOR below, handing over
+    /// to multigrid after 200 sweeps, and SOR where multigrid does not converge:
+    /// `solvers::fld::Solver::Auto`; `solved_by` in `runs.csv` says which ran). The plots and
+    /// the error tables use the first; `rel_l2_vs_first_solver` in `runs.csv` compares the
+    /// others with it.
+    #[arg(long, value_delimiter = ',', value_enum, default_value = "auto")]
     pub solver: Vec<SolverArg>,
 }
 
@@ -79,6 +82,9 @@ pub enum SolverArg {
     Sor,
     /// FAS multigrid, F(2,2) cycles (CPU and GPU).
     Multigrid,
+    /// Multigrid where it was measured faster, SOR elsewhere and as its fallback
+    /// (`solvers::fld::Solver::Auto`).
+    Auto,
 }
 
 impl SolverArg {
@@ -87,6 +93,7 @@ impl SolverArg {
         match self {
             Self::Sor => fld::Solver::Sor,
             Self::Multigrid => fld::Solver::Multigrid(fld::multigrid::MgConfig::default()),
+            Self::Auto => fld::Solver::Auto(fld::multigrid::MgConfig::default()),
         }
     }
 }
@@ -171,8 +178,12 @@ pub struct RunRow {
     pub precision: &'static str,
     /// `cpu` or `gpu`.
     pub backend: &'static str,
-    /// `sor` or `multigrid`.
+    /// The `--solver` value: `sor`, `multigrid` or `auto`.
     pub solver: &'static str,
+    /// The solvers that produced φ, in order (`solvers::fld::FldTrace::solver`): `sor`,
+    /// `multigrid`, or for `auto` e.g. `sor>multigrid` (SOR did not finish in its sweep
+    /// budget, multigrid solved from scratch).
+    pub solved_by: String,
     /// SOR factor used (multigrid smooths with ω = 1).
     pub omega: f64,
     /// Iterations run (multigrid: cycles).
@@ -446,10 +457,10 @@ fn solve_case(
         knudsen: case.knudsen,
         ..FldConfig::default()
     };
-    let every = if matches!(solver, fld::Solver::Sor) {
-        25
-    } else {
+    let every = if matches!(solver, fld::Solver::Multigrid(_)) {
         1
+    } else {
+        25
     };
     let sol = fld::solve_with(backend, &medium, &boundary, &cfg, &solver, |it, r| {
         if it % every == 0 {
@@ -530,7 +541,7 @@ fn solve_case(
         precision: backend.precision().name(),
         backend: backend.kind(),
         solver: solver.name(),
-        omega: if matches!(solver, fld::Solver::Sor) {
+        omega: if sol.trace.solver_name() == "sor" {
             omega
         } else {
             1.0
@@ -547,6 +558,7 @@ fn solve_case(
         err_grosjean_profile: (np / dp).sqrt(),
         err_cda_near: (nc / dc).sqrt(),
         rel_l2_vs_first_solver: 0.0,
+        solved_by: sol.trace.solver.clone(),
     };
     Ok((run, profile, sol.phi))
 }
@@ -745,6 +757,7 @@ impl Experiment for PointSource {
                     "precision",
                     "backend",
                     "solver",
+                    "solved_by",
                     "omega",
                     "iterations",
                     "work_units",
@@ -850,16 +863,24 @@ impl Experiment for PointSource {
         let first_solver = solvers.first().cloned().unwrap_or_default();
         let find = |lim: &str, b: &str, k: &str, a: &str| find_with(lim, b, k, a, &first_solver);
         let cell = |r: Option<Row<'_>>, col: &str| r.map_or("–".to_string(), |r| r.fixed(col, 4));
-        let solver_text = if first_solver == "multigrid" {
-            "FAS multigrid, F(2,2) cycles (`solvers::fld::multigrid`; CPU: Krylov-accelerated, depth 3)"
-        } else {
-            "red-black SOR at ω = 2/(1 + sin(π/n))"
+        let solver_text = match first_solver.as_str() {
+            "multigrid" => {
+                "FAS multigrid, F(2,2) cycles (`solvers::fld::multigrid`; CPU: Krylov-accelerated, depth 3)"
+            }
+            "auto" => {
+                "`auto` (`solvers::fld::Solver::Auto`): FAS multigrid, F(2,2) cycles, on grids of \
+                 100³ voxels or more (FLD: 63³), red-black SOR at ω = 2/(1 + sin(π/n)) on smaller ones, handing \
+                 over to multigrid after 200 sweeps and back to SOR where multigrid does not \
+                 converge; `solved_by` in `runs.csv` says which ran, and the iterations below are \
+                 multigrid cycles where multigrid solved"
+            }
+            _ => "red-black SOR at ω = 2/(1 + sin(π/n))",
         };
         let _ = writeln!(
             out,
             "{n}³ voxels, τ = 4 across, one emitting voxel. Relative L2 error of φ over all voxels with \
              0 < τ < 1, against Grosjean (FLD Eq 24) and, for CDA, against its own theory (FLD Eq 27). \
-             Solver: {solver_text} (see `solver`, `omega` and `residual` in `runs.csv`).\n"
+             Solver: {solver_text} (see `solver`, `solved_by`, `omega` and `residual` in `runs.csv`).\n"
         );
         if solvers.iter().any(|x| x == "sor") && solvers.iter().any(|x| x == "multigrid") {
             let _ = writeln!(
@@ -945,7 +966,13 @@ impl Experiment for PointSource {
                         } else {
                             " (not converged)"
                         };
-                        format!("{}{c}", r.get("iterations"))
+                        // `auto` runs: say which solver's steps these are.
+                        let by = match r.get("solved_by") {
+                            "" | "sor" => String::new(),
+                            "multigrid" => " multigrid cycles".into(),
+                            path => format!(" ({path})"),
+                        };
+                        format!("{}{by}{c}", r.get("iterations"))
                     }),
                     lp.map_or("–".into(), |r| r.fixed("seconds", 2)),
                 ]

@@ -117,15 +117,19 @@ pub struct Args {
     /// reported in plan.json). Grid methods only.
     #[arg(long, value_parser = crate::common::count_usize)]
     pub max_iterations: Option<usize>,
-    /// Solver of a `cda`/`fld` method: `sor` (red-black SOR, FLD Algorithm 1, the default)
-    /// or `multigrid` (FAS F(2,2), `solvers::fld::multigrid`, CPU and GPU; the same as the
-    /// method's `:mg` variant). Other methods have their own scheme and refuse it.
+    /// Solver of a `cda`/`fld` method: `sor` (red-black SOR, FLD Algorithm 1, the default),
+    /// `multigrid` (FAS F(2,2), `solvers::fld::multigrid`, CPU and GPU; the same as the
+    /// method's `:mg` variant) or `auto` (multigrid from 100³ voxels for CDA and 63³ for FLD,
+    /// SOR below and where multigrid does not converge; the `:auto` variant,
+    /// `solvers::fld::Solver::Auto`).
+    /// Other methods have their own scheme and refuse it.
     #[arg(long, value_enum)]
     pub solver: Option<crate::point_source::SolverArg>,
 }
 
-/// `method` with `--solver` applied: `multigrid` appends the `:mg` variant to a `cda`/`fld`
-/// method (unchanged if it has it), `sor` refuses a method that names `:mg`.
+/// `method` with `--solver` applied: `multigrid` (`auto`) appends the `:mg` (`:auto`)
+/// variant to a `cda`/`fld` method (unchanged if it has it), and every `--solver` refuses a
+/// method that names another solver's variant.
 pub fn method_with_solver(
     method: &str,
     solver: Option<crate::point_source::SolverArg>,
@@ -134,20 +138,36 @@ pub fn method_with_solver(
     let m = method.trim();
     let mut tokens = m.split(':');
     let base = tokens.next().unwrap_or("").to_ascii_lowercase();
-    let has_mg = tokens.any(|t| t.eq_ignore_ascii_case("mg"));
-    let diffusion = base == "cda" || base == "fld";
-    match solver {
-        None => Ok(m.to_string()),
-        Some(_) if !diffusion => bail!(
-            "--solver applies to the cda and fld methods only (SOR or multigrid); --method \
-             `{m}` has its own scheme"
-        ),
-        Some(SolverArg::Multigrid) if has_mg => Ok(m.to_string()),
-        Some(SolverArg::Multigrid) => Ok(format!("{m}:mg")),
-        Some(SolverArg::Sor) if has_mg => {
-            bail!("--solver sor with --method `{m}`: the `:mg` variant is the multigrid solver")
+    // The solver variant the method names, if any.
+    let named = tokens.find_map(|t| {
+        if t.eq_ignore_ascii_case("mg") {
+            Some(SolverArg::Multigrid)
+        } else if t.eq_ignore_ascii_case("auto") {
+            Some(SolverArg::Auto)
+        } else {
+            None
         }
-        Some(SolverArg::Sor) => Ok(m.to_string()),
+    });
+    let diffusion = base == "cda" || base == "fld";
+    let suffix = |s: SolverArg| match s {
+        SolverArg::Sor => "",
+        SolverArg::Multigrid => ":mg",
+        SolverArg::Auto => ":auto",
+    };
+    match (solver, named) {
+        (None, _) => Ok(m.to_string()),
+        (Some(_), _) if !diffusion => bail!(
+            "--solver applies to the cda and fld methods only (SOR, multigrid or auto); \
+             --method `{m}` has its own scheme"
+        ),
+        (Some(s), Some(n)) if s == n => Ok(m.to_string()),
+        (Some(s), Some(n)) => bail!(
+            "--solver {} with --method `{m}`: the `{}` variant is the {} solver",
+            crate::common::value_names(&[s]),
+            suffix(n),
+            crate::common::value_names(&[n]),
+        ),
+        (Some(s), None) => Ok(format!("{m}{}", suffix(s))),
     }
 }
 

@@ -85,9 +85,10 @@ fn multigrid_reaches_sors_solution_in_the_point_source_experiment() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `--backend both --solver sor,multigrid` (issue 15 item 2 on the experiment's path): the
-/// GPU multigrid converges and reaches the GPU SOR's φ (relative L2 < 10⁻⁴ at tolerance
-/// 10⁻⁵, f32), and its error against Grosjean is the CPU multigrid's within 1 %. Skipped
+/// `--backend both --solver sor,multigrid,auto` (issue 15 item 2 on the experiment's path):
+/// the GPU multigrid converges and reaches the GPU SOR's φ (relative L2 < 10⁻⁴ at tolerance
+/// 10⁻⁵, f32), and its error against Grosjean is the CPU multigrid's within 1 %; `auto`
+/// converges to SOR's φ on both backends. Skipped
 /// without an adapter (unless SCATTERBENCH_REQUIRE_GPU=1).
 #[test]
 fn multigrid_on_the_gpu_matches_sor_and_the_cpu() {
@@ -120,11 +121,16 @@ fn multigrid_on_the_gpu_matches_sor_and_the_cpu() {
         "--tolerance",
         "1e-5",
         "--solver",
-        "sor,multigrid",
+        "sor,multigrid,auto",
         "--out",
         dir.to_str().unwrap(),
     ]);
     let rows = point_source::run(&args).unwrap();
+    // `auto` on either backend: converged to the first solver's (SOR's) φ.
+    for a in rows.iter().filter(|r| r.solver == "auto") {
+        assert!(a.converged && !a.solved_by.is_empty(), "{a:?}");
+        assert!(a.rel_l2_vs_first_solver < 1e-4, "{a:?}");
+    }
     for m in rows.iter().filter(|r| r.solver == "multigrid") {
         assert!(m.converged, "{m:?}");
         let cpu = rows
@@ -153,6 +159,59 @@ fn multigrid_on_the_gpu_matches_sor_and_the_cpu() {
             .filter(|r| r.solver == "multigrid" && r.backend == "gpu")
             .count(),
         2
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `point_source --solver sor,auto` where SOR is slow (Gauss–Seidel, `--omega 1`, 31³ CDA,
+/// R̄/j̄ < 10⁻⁹; measured 2026-12-06: SOR 906 iterations, `auto` 200 sweeps and 7 cycles, 237.1
+/// work units): `auto` runs its 200 SOR sweeps,
+/// hands the solve to multigrid (`solved_by` = `sor>multigrid`, ω recorded as multigrid's
+/// 1), counts both in its work units, and reaches SOR's φ to 10⁻⁶; its seconds include the
+/// SOR sweeps.
+#[test]
+fn auto_hands_a_slow_sor_solve_to_multigrid_in_the_experiment() {
+    let dir = tmp("ps_solver_auto");
+    let args = point_source::Args::parse_from([
+        "point_source",
+        "--no-progress",
+        "--n",
+        "31",
+        "--limiter",
+        "cda",
+        "--boundary",
+        "zero",
+        "--albedo",
+        "0.5",
+        "--omega",
+        "1",
+        "--tolerance",
+        "1e-9",
+        "--solver",
+        "sor,auto",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    let rows = point_source::run(&args).unwrap();
+    let (s, a) = (&rows[0], &rows[1]);
+    assert_eq!((s.solver, a.solver), ("sor", "auto"));
+    assert!(s.converged && a.converged, "{rows:?}");
+    assert!(s.iterations > solvers::fld::AUTO_SOR_SWEEPS, "{s:?}");
+    assert_eq!(
+        (s.solved_by.as_str(), a.solved_by.as_str()),
+        ("sor", "sor>multigrid")
+    );
+    assert_eq!(a.omega, 1.0);
+    assert!(a.work_units > solvers::fld::AUTO_SOR_SWEEPS as f64);
+    assert!(a.work_units < s.work_units, "{a:?}");
+    assert!(a.rel_l2_vs_first_solver < 1e-6, "{a:?}");
+    let csv = std::fs::read_to_string(dir.join("runs.csv")).unwrap();
+    assert!(
+        csv.lines()
+            .next()
+            .unwrap()
+            .split(',')
+            .any(|c| c == "solved_by")
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -224,10 +224,16 @@ fn method_names_select_multigrid() {
     );
     assert!(solvers::method::parse("cda:bogus").is_err());
     assert!(solvers::method::parse("fld:bogus:mg").is_err());
+    // `:auto` selects `Solver::Auto`; one solver per method.
+    for (spec, name) in [("cda:auto", "cda:auto"), ("FLD:Auto", "fld:lp:auto")] {
+        assert_eq!(solvers::method::parse(spec).unwrap().name(), name);
+    }
+    assert!(solvers::method::parse("fld:lp:mg:auto").is_err());
     // The Krylov depth is a multigrid parameter: an integer 0–16, refused without `:mg`.
     use solvers::method::{Params, parse_with};
     let k = |spec: &str, v: f64| parse_with(spec, &Params::none().with("krylov", v));
     assert!(k("cda:mg", 0.0).is_ok() && k("fld:lp:mg", 16.0).is_ok());
+    assert!(k("cda:auto", 2.0).is_ok());
     for (spec, v) in [
         ("cda", 3.0),
         ("cda:mg", 2.5),
@@ -449,4 +455,94 @@ fn seconds_to_tolerance_marks_the_first_step_below_the_tolerance() {
     );
     assert_eq!(capped.stop, Stop::Cap);
     assert_eq!(capped.trace.seconds_to_tolerance, None);
+}
+
+/// `Solver::Auto` (issue 15 item 4, the measured default of `point_source`): each branch of
+/// its rule on a case that takes it, with φ bit for bit that of the solver it hands to.
+/// * A small grid SOR finishes within [`AUTO_SOR_SWEEPS`] (17³ CDA point source, ω = 1.8):
+///   SOR's φ, `sor`.
+/// * A small grid SOR does not finish (33³ FLD-LP point source at ω = 1, Gauss–Seidel, which
+///   needs far more than 200 sweeps to 10⁻⁸): `sor>multigrid`, multigrid's φ, cycles and
+///   work units plus the 200 sweeps.
+/// * An FLD grid of 63³ ([`auto_multigrid_voxels`]): `multigrid` from the start.
+/// * A medium where both stall (white noise with 95 % vacuum, FLD-LP: multigrid `stalled` at
+///   R̄/j̄ 1.4·10⁻² after 46 cycles, measured 2026-12-06): `sor>multigrid>sor`, never
+///   `converged`, SOR's typed stop.
+/// * Where multigrid cannot run (Galerkin coarse levels with a non-constant limiter,
+///   `Unsupported`; the Marshak face): SOR's φ.
+#[test]
+fn auto_takes_each_branch_of_its_rule() {
+    use solvers::fld::{AUTO_SOR_SWEEPS, Solver, VacuumFace, auto_multigrid_voxels, solve_with};
+    use solvers::{Backend, Precision};
+    let cpu = Backend::Cpu(Precision::F64);
+    let run = |m: &Medium<f64>, cfg: &FldConfig, s: &Solver| {
+        solve_with(&cpu, m, &Boundary::Zero, cfg, s, |_, _| {}).unwrap()
+    };
+    let auto = Solver::Auto(MgConfig::default());
+    let multigrid = Solver::Multigrid(MgConfig::default());
+
+    let (small, _) = scenes::point_source::<f64>(17, 10.0, 0.9).unwrap();
+    let cfg = FldConfig::fld(FluxLimiter::Cda)
+        .with_tolerance(1e-6)
+        .with_omega(1.8);
+    let (a, s) = (run(&small, &cfg, &auto), run(&small, &cfg, &Solver::Sor));
+    assert_eq!(a.trace.solver, "sor");
+    assert!(a.converged() && a.steps <= AUTO_SOR_SWEEPS, "{}", a.steps);
+    assert_eq!(a.phi, s.phi);
+
+    let (mid, _) = scenes::point_source::<f64>(33, 10.0, 0.9).unwrap();
+    let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning)
+        .with_tolerance(1e-8)
+        .with_omega(1.0)
+        .with_max_iterations(20_000);
+    let (a, m) = (run(&mid, &cfg, &auto), run(&mid, &cfg, &multigrid));
+    assert_eq!(a.trace.solver, "sor>multigrid");
+    assert!(a.converged() && m.converged());
+    assert_eq!(a.phi, m.phi);
+    assert_eq!(a.steps, m.steps);
+    assert_eq!(
+        a.trace.work_units,
+        m.trace.work_units + AUTO_SOR_SWEEPS as f64
+    );
+    assert!(a.seconds > a.trace.seconds_to_tolerance.unwrap());
+
+    let (big, _) = scenes::point_source::<f64>(63, 10.0, 0.9).unwrap();
+    assert!(big.grid.len() >= auto_multigrid_voxels(FluxLimiter::LevermorePomraning));
+    assert!(big.grid.len() < auto_multigrid_voxels(FluxLimiter::Cda));
+    let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning).with_tolerance(1e-6);
+    let (a, m) = (run(&big, &cfg, &auto), run(&big, &cfg, &multigrid));
+    assert_eq!(a.trace.solver, "multigrid");
+    assert_eq!(a.phi, m.phi);
+
+    let vac = scenes::random_heterogeneous::<f64>([19, 16, 21], 7, 0.95).unwrap();
+    let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning)
+        .with_tolerance(1e-6)
+        .with_max_iterations(300);
+    let a = run(&vac, &cfg, &auto);
+    eprintln!(
+        "95 % vacuum, FLD-LP: {} {} after {} steps, R/j {:.2e}",
+        a.trace.solver,
+        a.stop,
+        a.steps,
+        a.final_residual()
+    );
+    assert_eq!(a.trace.solver, "sor>multigrid>sor");
+    assert_ne!(a.stop, Stop::Converged);
+    assert!(a.final_residual() >= 1e-6);
+    assert_eq!(a.phi, run(&vac, &cfg, &Solver::Sor).phi);
+
+    let galerkin = Solver::Auto(MgConfig {
+        coarse_op: CoarseOp::Galerkin,
+        ..MgConfig::default()
+    });
+    let cfg = FldConfig::fld(FluxLimiter::LevermorePomraning).with_tolerance(1e-6);
+    let (a, s) = (run(&big, &cfg, &galerkin), run(&big, &cfg, &Solver::Sor));
+    assert_eq!((a.trace.solver.as_str(), &a.phi), ("sor", &s.phi));
+    let mut marshak = FldConfig::fld(FluxLimiter::Cda).with_tolerance(1e-6);
+    marshak.vacuum_face = VacuumFace::Marshak;
+    let (a, s) = (
+        run(&small, &marshak, &auto),
+        run(&small, &marshak, &Solver::Sor),
+    );
+    assert_eq!((a.trace.solver.as_str(), &a.phi), ("sor", &s.phi));
 }

@@ -55,7 +55,7 @@ fn quick_config() -> PipelineConfig {
         downsample: 2,
         method: solvers::MethodRef::new(Box::new(solvers::fld::FldMethod {
             config: solvers::fld::FldConfig::default(),
-            multigrid: None,
+            solver: solvers::fld::Solver::Sor,
             anisotropy: solvers::method::AnisotropyScaling::Paper,
         })),
         tolerance: solvers::Tolerance {

@@ -9,7 +9,7 @@
 //! under-relaxation of the D update, see the module docs of [`crate::fld`]).
 
 use super::multigrid::MgConfig;
-use super::{Boundary, FldConfig, FluxLimiter, VacuumFace};
+use super::{Boundary, FldConfig, FluxLimiter, Solver, VacuumFace};
 use crate::method::{
     AnisotropyScaling, Capabilities, Fluence, LightInput, Method, MethodFamily, Params, Problem,
     Tolerance,
@@ -22,8 +22,9 @@ pub struct FldMethod {
     /// The solver settings; `tolerance` and `max_iterations` are replaced by the
     /// [`Tolerance`] of each solve.
     pub config: FldConfig,
-    /// `Some`: solve by FAS multigrid ([`super::multigrid`]) instead of SOR.
-    pub multigrid: Option<MgConfig>,
+    /// How each solve runs: red-black SOR (the default), FAS multigrid ([`super::multigrid`],
+    /// the variant `:mg`) or [`Solver::Auto`] (the variant `:auto`).
+    pub solver: Solver,
     /// How σs is used under an anisotropic phase function (a spec suffix `:similarity`).
     pub anisotropy: AnisotropyScaling,
 }
@@ -37,14 +38,21 @@ impl FldMethod {
                 ..FldConfig::default()
             }
             .with_omega(1.8),
-            multigrid: None,
+            solver: Solver::Sor,
             anisotropy: AnisotropyScaling::default(),
         }
     }
 
     /// The same method solved by FAS multigrid with default cycle settings.
     pub fn multigrid(mut self) -> Self {
-        self.multigrid = Some(MgConfig::default());
+        self.solver = Solver::Multigrid(MgConfig::default());
+        self
+    }
+
+    /// The same method solved by [`Solver::Auto`] (multigrid where it was measured faster,
+    /// SOR elsewhere and as its fallback) with default cycle settings.
+    pub fn auto(mut self) -> Self {
+        self.solver = Solver::Auto(MgConfig::default());
         self
     }
 
@@ -82,9 +90,9 @@ impl FldMethod {
                 value: k,
                 reason,
             };
-            let Some(mg) = &mut self.multigrid else {
+            let (Solver::Multigrid(mg) | Solver::Auto(mg)) = &mut self.solver else {
                 return Err(bad(
-                    "the Krylov acceleration is a multigrid setting (add :mg)",
+                    "the Krylov acceleration is a multigrid setting (add :mg or :auto)",
                 ));
             };
             if !(k.fract() == 0.0 && k >= 0.0) {
@@ -113,9 +121,10 @@ impl Method for FldMethod {
             VacuumFace::Paper => base,
             VacuumFace::Marshak => format!("{base}:marshak"),
         };
-        match self.multigrid {
-            Some(_) => format!("{base}:mg"),
-            None => base,
+        match self.solver {
+            Solver::Sor => base,
+            Solver::Multigrid(_) => format!("{base}:mg"),
+            Solver::Auto(_) => format!("{base}:auto"),
         }
     }
 
@@ -150,13 +159,14 @@ impl Method for FldMethod {
         let cfg = self.config_for(tolerance);
         let scaled = self.anisotropy.apply(problem.medium, problem.phase);
         let medium = scaled.as_ref().unwrap_or(problem.medium);
-        let solver = match &self.multigrid {
-            Some(mg) => super::Solver::Multigrid(mg.clone()),
-            None => super::Solver::Sor,
-        };
-        super::solve_with(backend, medium, &Boundary::Zero, &cfg, &solver, |i, r| {
-            observer(i, r)
-        })
+        super::solve_with(
+            backend,
+            medium,
+            &Boundary::Zero,
+            &cfg,
+            &self.solver,
+            observer,
+        )
         .map(|s| s.erase())
         .map_err(|e| match e {
             SolverError::Unsupported(why) => {
@@ -164,6 +174,21 @@ impl Method for FldMethod {
             }
             e => e,
         })
+    }
+
+    /// Both solvers in the accuracy atlas (issue 15 item 4): the SOR method (the paper's, the
+    /// family's default) has its multigrid twin (`cda:mg`, `fld:lp:mg`) as a setting of its
+    /// own; the Marshak face has no multigrid, and the `:mg`/`:auto` variants none.
+    fn param_settings(&self) -> Vec<crate::method::ParamSetting> {
+        if self.solver != Solver::Sor || self.config.vacuum_face != VacuumFace::Paper {
+            return Vec::new();
+        }
+        let m = self.clone().multigrid();
+        vec![crate::method::ParamSetting {
+            label: m.name(),
+            method: Box::new(m),
+            ordinate_set_only: false,
+        }]
     }
 
     fn kernels(&self) -> &'static [&'static crate::gpu::kernel::KernelSpec] {
@@ -191,8 +216,8 @@ const PARAMS: &[(&str, &str)] = &[
     ),
     (
         "krylov",
-        "multigrid (:mg) only: depth 0–16 of the Krylov acceleration of the cycles; default 3, \
-         0 = plain cycles",
+        "multigrid (:mg, :auto) only: depth 0–16 of the Krylov acceleration of the cycles; \
+         default 3, 0 = plain cycles",
     ),
 ];
 
@@ -201,14 +226,18 @@ pub const CDA: MethodFamily = MethodFamily {
     name: "cda",
     title: "classical diffusion (CDA), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 11–12, 26–27, 30–37, Algorithm 1)",
-    variants: "[paper|similarity][:marshak][:mg]",
+    variants: "[paper|similarity][:marshak][:mg|:auto]",
     params: PARAMS,
     build: |variant, params| {
-        let (_, a, face, mg) = options(variant, false)?;
+        let (_, a, face, solver) = options(variant, false)?;
         let m = FldMethod::new(FluxLimiter::Cda)
             .with_anisotropy(a)
             .with_vacuum_face(face);
-        let m = if mg { m.multigrid() } else { m };
+        let m = match solver {
+            Solver::Sor => m,
+            Solver::Multigrid(_) => m.multigrid(),
+            Solver::Auto(_) => m.auto(),
+        };
         Ok(Box::new(m.with_params(params)?))
     },
 };
@@ -219,10 +248,10 @@ pub const FLD: MethodFamily = MethodFamily {
     name: "fld",
     title: "flux-limited diffusion (FLD), red-black SOR",
     paper: "Koerner et al., Flux-Limited Diffusion (FLD Eqs 15–20, Table 2, Algorithm 1)",
-    variants: "lp|sum|max|kershaw|larsen<n>[:paper|similarity][:marshak][:mg]",
+    variants: "lp|sum|max|kershaw|larsen<n>[:paper|similarity][:marshak][:mg|:auto]",
     params: PARAMS,
     build: |variant, params| {
-        let (limiter, a, face, mg) = options(variant, true)?;
+        let (limiter, a, face, solver) = options(variant, true)?;
         let limiter = match limiter {
             None => FluxLimiter::LevermorePomraning,
             Some(v) => v.trim().parse()?,
@@ -230,23 +259,28 @@ pub const FLD: MethodFamily = MethodFamily {
         let m = FldMethod::new(limiter)
             .with_anisotropy(a)
             .with_vacuum_face(face);
-        let m = if mg { m.multigrid() } else { m };
+        let m = match solver {
+            Solver::Sor => m,
+            Solver::Multigrid(_) => m.multigrid(),
+            Solver::Auto(_) => m.auto(),
+        };
         Ok(Box::new(m.with_params(params)?))
     },
 };
 
-/// Splits a `cda`/`fld` variant into (limiter, anisotropy scaling, vacuum face, multigrid):
-/// tokens separated by `:`, where `mg` selects multigrid, `paper`/`similarity` the scaling,
-/// `marshak` the Marshak vacuum face, and (for `fld`, first) any other token the limiter.
-/// `marshak` with `mg` is an error (multigrid has the paper's face only).
+/// Splits a `cda`/`fld` variant into (limiter, anisotropy scaling, vacuum face, solver):
+/// tokens separated by `:`, where `mg` selects multigrid, `auto` [`Solver::Auto`],
+/// `paper`/`similarity` the scaling, `marshak` the Marshak vacuum face, and (for `fld`,
+/// first) any other token the limiter. `marshak` with `mg` is an error (multigrid has the
+/// paper's face only; `marshak:auto` solves by SOR), and so are `mg` and `auto` together.
 fn options(
     variant: Option<&str>,
     has_limiter: bool,
-) -> Result<(Option<String>, AnisotropyScaling, VacuumFace, bool), SolverError> {
+) -> Result<(Option<String>, AnisotropyScaling, VacuumFace, Solver), SolverError> {
     let mut limiter = None;
     let mut scaling = AnisotropyScaling::default();
     let mut face = VacuumFace::Paper;
-    let mut mg = false;
+    let (mut mg, mut auto) = (false, false);
     for (k, tok) in variant.unwrap_or("").split(':').enumerate() {
         let t = tok.trim();
         if t.is_empty() && variant.is_none() {
@@ -254,6 +288,8 @@ fn options(
         }
         if t.eq_ignore_ascii_case("mg") {
             mg = true;
+        } else if t.eq_ignore_ascii_case("auto") {
+            auto = true;
         } else if t.eq_ignore_ascii_case("marshak") {
             face = VacuumFace::Marshak;
         } else if let Some(a) = AnisotropyScaling::parse(t) {
@@ -263,16 +299,17 @@ fn options(
         } else {
             return Err(SolverError::UnknownName {
                 what: if has_limiter {
-                    "variant of fld (after the limiter: paper, similarity, marshak, mg)"
+                    "variant of fld (after the limiter: paper, similarity, marshak, mg, auto)"
                 } else {
                     "variant of cda"
                 },
                 got: t.to_string(),
                 known: if has_limiter {
-                    "lp, sum, max, kershaw, larsen<n>, then paper|similarity, marshak and/or mg"
+                    "lp, sum, max, kershaw, larsen<n>, then paper|similarity, marshak and/or \
+                     mg|auto"
                         .into()
                 } else {
-                    "paper, similarity, marshak, mg".into()
+                    "paper, similarity, marshak, mg, auto".into()
                 },
             });
         }
@@ -284,7 +321,21 @@ fn options(
             known: "marshak without mg, or mg without marshak".into(),
         });
     }
-    Ok((limiter, scaling, face, mg))
+    if mg && auto {
+        return Err(SolverError::UnknownName {
+            what: "variant combination (one solver: mg or auto)",
+            got: "mg:auto".into(),
+            known: "mg, auto, or neither (SOR)".into(),
+        });
+    }
+    let solver = if mg {
+        Solver::Multigrid(MgConfig::default())
+    } else if auto {
+        Solver::Auto(MgConfig::default())
+    } else {
+        Solver::Sor
+    };
+    Ok((limiter, scaling, face, solver))
 }
 
 #[cfg(test)]

@@ -13,6 +13,8 @@
 //! * [`multigrid::CpuMultigrid`], [`multigrid::GpuMultigrid`]: nonlinear FAS multigrid with
 //!   Algorithm 1's sweep as smoother, on the CPU and on the GPU (`multigrid.wgsl` for the
 //!   transfers; method names `cda:mg`, `fld:<limiter>:mg`; see [`multigrid`]).
+//! * [`Solver`]: which of the two runs; [`Solver::Auto`] (variant `:auto`) picks multigrid
+//!   where it was measured faster and falls back to SOR where it does not converge.
 //! * `limiter.wgsl`: the limiters in WGSL, prepended to `fld.wgsl` and `multigrid.wgsl`.
 //!
 //! ## Decisions where the paper is silent (each is tested in `cpu.rs`)
@@ -591,8 +593,9 @@ pub fn solve(
     }
 }
 
-/// How the FLD/CDA equation is solved: red-black SOR (FLD Algorithm 1, the reference) or
-/// FAS multigrid ([`multigrid`], CPU and GPU).
+/// How the FLD/CDA equation is solved: red-black SOR (FLD Algorithm 1, the reference),
+/// FAS multigrid ([`multigrid`], CPU and GPU), or [`Solver::Auto`], which picks between them
+/// by the measured rule of [`auto_multigrid_voxels`] and [`AUTO_SOR_SWEEPS`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum Solver {
     /// Red-black SOR, FLD Algorithm 1.
@@ -600,14 +603,52 @@ pub enum Solver {
     Sor,
     /// FAS multigrid with these cycle settings.
     Multigrid(multigrid::MgConfig),
+    /// Multigrid (with these settings) where it was measured faster, SOR where it was not,
+    /// and SOR where multigrid does not converge:
+    /// * grids of at least [`auto_multigrid_voxels`] voxels (CDA 100³, FLD 63³) start with
+    ///   multigrid;
+    /// * smaller grids start with SOR and hand the solve to multigrid (from scratch) if SOR
+    ///   has not converged after [`AUTO_SOR_SWEEPS`] sweeps;
+    /// * if multigrid stops without converging (`stalled`, the cap, non-finite) or cannot
+    ///   run (the Marshak face, its memory budget), SOR solves from scratch with the full
+    ///   iteration cap;
+    /// * with the Marshak face ([`VacuumFace::Marshak`], which multigrid does not have) SOR.
+    ///
+    /// The result says which solvers ran in [`FldTrace::solver`] (e.g. `sor>multigrid`);
+    /// its seconds, setup seconds and work units are the sums over them, its steps and
+    /// residual history the last solver's.
+    Auto(multigrid::MgConfig),
 }
 
+/// Grids with at least this many voxels (boundary layer included) start [`Solver::Auto`]
+/// with multigrid: 10⁶ (100³) for CDA, 250 000 (63³) for FLD. *Why* (`multigrid_scaling`,
+/// 2-vCPU AMD EPYC, CPU f64, R̄/j̄ < 10⁻⁶, SOR seconds over multigrid's, point source and
+/// Fig 4 cloud): CDA 3.1× and 1.9× at 127³, 1.3× and 0.6× at 63³; FLD-LP 3.2× and 5.4× at
+/// 127³, 1.2× and 3.4× at 63³, 0.6× and 1.5× at 31³.
+pub fn auto_multigrid_voxels(limiter: FluxLimiter) -> usize {
+    if limiter.is_constant() {
+        1_000_000
+    } else {
+        250_000
+    }
+}
+
+/// SOR sweeps [`Solver::Auto`] runs on a grid below [`auto_multigrid_voxels`] before it hands
+/// the solve to multigrid. *Why*: a multigrid solve of the measured problems costs 26–60
+/// work units of about 3 SOR sweeps each (the `multigrid` module docs), i.e. 80–180 sweeps
+/// of wall time; a solve that SOR has not finished in 200 sweeps is one where multigrid
+/// would have been about as fast or faster, and running SOR first bounds what the switch
+/// can lose to 200 sweeps (the datasets of `convergence_check` at 18³: CDA 0.002–0.004 s
+/// by SOR against 0.005 s by multigrid, but `shell_core` 0.74 s against 0.0096 s).
+pub const AUTO_SOR_SWEEPS: usize = 200;
+
 impl Solver {
-    /// `sor` or `multigrid`.
+    /// `sor`, `multigrid` or `auto`.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Sor => "sor",
             Self::Multigrid(_) => "multigrid",
+            Self::Auto(_) => "auto",
         }
     }
 }
@@ -622,9 +663,22 @@ pub fn solve_with(
     solver: &Solver,
     observer: impl FnMut(usize, f64),
 ) -> Result<FldSolution<f64>, SolverError> {
-    let Solver::Multigrid(mg) = solver else {
-        return solve(backend, medium, boundary, config, observer);
-    };
+    match solver {
+        Solver::Sor => solve(backend, medium, boundary, config, observer),
+        Solver::Multigrid(mg) => solve_multigrid(backend, medium, boundary, config, mg, observer),
+        Solver::Auto(mg) => solve_auto(backend, medium, boundary, config, mg, observer),
+    }
+}
+
+/// [`Solver::Multigrid`] on any backend.
+fn solve_multigrid(
+    backend: &Backend<'_>,
+    medium: &Medium<f64>,
+    boundary: &Boundary<f64>,
+    config: &FldConfig,
+    mg: &multigrid::MgConfig,
+    observer: impl FnMut(usize, f64),
+) -> Result<FldSolution<f64>, SolverError> {
     match backend {
         Backend::Cpu(Precision::F64) => {
             Ok(CpuMultigrid::new(medium, boundary, config, mg)?.solve_observed(observer))
@@ -646,6 +700,62 @@ pub fn solve_with(
     }
 }
 
+/// [`Solver::Auto`]: SOR or multigrid by the grid's size, the other when the first does not
+/// finish (see the variant's docs).
+fn solve_auto(
+    backend: &Backend<'_>,
+    medium: &Medium<f64>,
+    boundary: &Boundary<f64>,
+    config: &FldConfig,
+    mg: &multigrid::MgConfig,
+    mut observer: impl FnMut(usize, f64),
+) -> Result<FldSolution<f64>, SolverError> {
+    // What the solvers that ran before the last one cost.
+    let mut before = (Vec::<&'static str>::new(), 0.0, 0.0, 0.0);
+    let mut spend = |s: &FldSolution<f64>, name| {
+        before.0.push(name);
+        before.1 += s.seconds;
+        before.2 += s.setup_seconds;
+        before.3 += s.trace.work_units;
+    };
+    if config.vacuum_face == VacuumFace::Marshak {
+        // Multigrid has the paper's face only.
+        return solve(backend, medium, boundary, config, observer);
+    }
+    if medium.grid.len() < auto_multigrid_voxels(config.limiter) {
+        let budget = FldConfig {
+            max_iterations: config.max_iterations.min(AUTO_SOR_SWEEPS),
+            ..config.clone()
+        };
+        let sor = solve(backend, medium, boundary, &budget, &mut observer)?;
+        if sor.stop != Stop::Cap || budget.max_iterations == config.max_iterations {
+            return Ok(sor);
+        }
+        spend(&sor, "sor");
+    }
+    let last = match solve_multigrid(backend, medium, boundary, config, mg, &mut observer) {
+        Ok(m) if m.converged() => m,
+        Ok(m) => {
+            spend(&m, "multigrid");
+            solve(backend, medium, boundary, config, &mut observer)?
+        }
+        // Multigrid cannot run here (the Marshak face, its memory budget): SOR can.
+        Err(SolverError::Unsupported(_) | SolverError::TooLarge(_)) => {
+            solve(backend, medium, boundary, config, &mut observer)?
+        }
+        Err(e) => return Err(e),
+    };
+    let (mut names, seconds, setup, work) = before;
+    names.push(last.trace.solver_name());
+    let mut sol = last;
+    sol.trace.seconds_to_tolerance = sol.trace.seconds_to_tolerance.map(|t| t + seconds);
+    sol.seconds += seconds;
+    sol.setup_seconds += setup;
+    sol.trace.work_units += work;
+    sol.trace.solver = names.join(">");
+    Ok(sol)
+}
+
 /// FLD's part of a [`Solution`]: the residual history and the work it cost.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FldTrace {
@@ -661,6 +771,20 @@ pub struct FldTrace {
     /// R̄/j̄ alone, multigrid on R̄/j̄ and its error estimate (often one cycle more), so this
     /// is the like-for-like time to R̄/j̄ < tolerance that issue 15's acceptance 3 compares.
     pub seconds_to_tolerance: Option<f64>,
+    /// The solver that produced φ: `sor` or `multigrid`; for [`Solver::Auto`] every solver
+    /// that ran, in order, joined by `>` (e.g. `multigrid>sor`: multigrid did not converge
+    /// and SOR solved from scratch).
+    pub solver: String,
+}
+
+impl FldTrace {
+    /// The last solver that ran (the part of [`FldTrace::solver`] after the last `>`).
+    pub fn solver_name(&self) -> &'static str {
+        match self.solver.rsplit('>').next() {
+            Some("multigrid") => "multigrid",
+            _ => "sor",
+        }
+    }
 }
 
 /// The result of a diffusion solve: φ, iterations ([`Solution::steps`]), why it stopped,
@@ -748,6 +872,7 @@ pub(crate) fn solution<T>(
             residuals,
             work_units: iterations as f64,
             seconds_to_tolerance: None,
+            solver: "sor".into(),
         },
     }
 }

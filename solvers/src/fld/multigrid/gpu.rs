@@ -523,6 +523,7 @@ impl<'a> GpuMultigrid<'a> {
             kind,
         );
         sol.trace.work_units = self.work;
+        sol.trace.solver = "multigrid".into();
         Ok(sol)
     }
 }

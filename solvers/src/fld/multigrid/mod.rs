@@ -213,8 +213,27 @@
 //!   SOR vs multigrid seconds, CDA nebula 0.0039/0.0049, emissive_cloud 0.0038/0.0056,
 //!   plume 0.0027/0.0048, cube (σt·Δl = 6) 0.0019/0.0052, shell_core 0.74/0.0096; FLD-LP
 //!   0.028/0.025, 0.030/0.023, 0.022/0.021, 0.010/0.018, shell_core 2.89/0.078. Multigrid is
-//!   therefore not faster everywhere it converges (small CDA grids), and SOR stays the
-//!   default solver (issue 15 item 4).
+//!   therefore not faster everywhere it converges (small CDA grids), so no single solver
+//!   is the faster default; the default is a rule between the two (next bullet).
+//! * **The default solver: [`crate::fld::Solver::Auto`] (issue 15 item 4; 2026-12-06, 2-vCPU
+//!   AMD EPYC Zen 5, 32 MiB L3, triad 67–70 GB/s).** Multigrid from 100³ voxels for CDA and
+//!   63³ for FLD (the sizes where `multigrid_scaling` measured it faster on both of its
+//!   problems, [`crate::fld::auto_multigrid_voxels`]); below, SOR for at most 200 sweeps
+//!   ([`crate::fld::AUTO_SOR_SWEEPS`], about what a multigrid solve of those problems costs
+//!   in wall time), then multigrid from scratch; SOR from scratch wherever multigrid ends
+//!   without converging or cannot run (the Marshak face). `FldTrace::solver` and the
+//!   `solved_by` column of `point_source` say which ran. It is `point_source`'s default
+//!   (`--solver auto`; the `cda`/`fld` methods keep SOR, the paper's, and take it as the
+//!   `:auto` variant or `render --solver auto`). Measured, `figures --only
+//!   point_source,flux_limiters` before and after, one run each on the same idle host:
+//!   `point_source` (Fig 5, 127³, 18 solves) 47.0 → 10.5 s wall (solves 45.5 → 8.6 s, all by
+//!   multigrid), `flux_limiters` (63³, 66 solves) 19.8 → 10.0 s (solves 19.45 → 9.16 s: 60
+//!   by multigrid, 6 CDA by SOR); the errors against Grosjean moved by at most 1.3·10⁻⁵
+//!   relative (both solvers stop at R̄/j̄ < 10⁻⁶). With the first rule (10⁶ voxels for FLD
+//!   too) `flux_limiters` took 17.9 s: 49 of its 66 solves ran 200 SOR sweeps before
+//!   multigrid, which lost where SOR needed 201–300 (Kershaw α = 0.5: 0.17 → 0.29 s).
+//!   Pinned by `auto_takes_each_branch_of_its_rule` (`tests/fld_multigrid.rs`) and
+//!   `auto_hands_a_slow_sor_solve_to_multigrid_in_the_experiment`.
 //! * **Issue 15's acceptance 3 at 255³, and what is left to try (2026-12-06, same 2-vCPU AMD
 //!   EPYC 7002, quiet, one run: `point_source --n 255 --boundary zero --tolerance 1e-6
 //!   --solver sor,multigrid --limiter cda,lp --albedo 0.5,0.99`, solve seconds without
@@ -1175,6 +1194,7 @@ impl<T: Real> CpuMultigrid<T> {
             Timer::WallClock,
         );
         sol.trace.work_units = self.work;
+        sol.trace.solver = "multigrid".into();
         sol.trace.seconds_to_tolerance = reached;
         sol
     }
