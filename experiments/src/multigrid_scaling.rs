@@ -3,6 +3,11 @@
 //! the point source (zero boundary, albedo `--albedo`, τ = 4 across the grid) and on FLD
 //! Fig 4's cloud in vacuum ([`solvers::scenes::vacuum_cloud`]), CPU f64 and/or the GPU (f32,
 //! `--backend`; issue 15 acceptance 7 is this experiment on a real GPU at n = 255 and 511).
+//! Two controls say where growth with n comes from: `ball_source`
+//! ([`solvers::scenes::ball_source`]: the same power over a ball of radius 0.1, a source of
+//! fixed size where the point source's one voxel sharpens with n) and `cloud_thin`
+//! ([`solvers::scenes::cloud_in_thin_medium`]: the cloud's vacuum filled by σt = 0.5, where
+//! FLD's D in vacuum, φ/|∇φ|, makes its equation hyperbolic).
 //!
 //! Multigrid is the FAS F(2,2) of [`solvers::fld::multigrid`] (on the CPU with the Krylov
 //! acceleration of depth `--krylov`, default 3); SOR is FLD Algorithm 1 with
@@ -52,8 +57,14 @@ pub struct Args {
     /// SOR runs only up to this n. Default 127 (31 with --quick).
     #[arg(long, value_parser = crate::common::count_usize)]
     pub sor_max_n: Option<usize>,
-    /// Problems: `point_source`, `cloud`.
-    #[arg(long, value_delimiter = ',', default_value = "point_source,cloud")]
+    /// Problems: `point_source`, `cloud`, and their controls `ball_source` (the point
+    /// source's power over a ball of radius 0.1, a source that does not sharpen with n) and
+    /// `cloud_thin` (the cloud with its vacuum filled by σt = 0.5, albedo 0.9).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "point_source,cloud,ball_source,cloud_thin"
+    )]
     pub problems: Vec<String>,
     /// Limiters (`cda`, `lp`, … as in `point_source --limiters`).
     #[arg(long, value_delimiter = ',', value_parser = list_item::<FluxLimiter>, default_value = "cda,lp")]
@@ -126,13 +137,26 @@ struct HistoryRow {
     backend: &'static str,
 }
 
+/// The problems `--problems` knows.
+const PROBLEMS: &str = "point_source, cloud, ball_source, cloud_thin";
+
+/// Radius of `ball_source`'s source (the unit cube's; τ = 0.4 at σt = 4): 3 voxels at n = 31.
+const BALL_RADIUS: f64 = 0.1;
+
+/// Extinction of `cloud_thin`'s medium around the cloud (τ = 0.5 across the unit cube).
+const THIN_SIGMA_T: f64 = 0.5;
+
 fn medium(problem: &str, n: usize, albedo: f64, seed: u64) -> Result<Medium<f64>> {
     match problem {
         "point_source" => Ok(scenes::point_source::<f64>(n, 4.0, albedo)
             .context("building the point-source medium")?
             .0),
         "cloud" => scenes::vacuum_cloud::<f64>(n, seed).context("building the cloud"),
-        other => bail!("--problems: unknown problem {other:?} (point_source, cloud)"),
+        "ball_source" => scenes::ball_source::<f64>(n, 4.0, albedo, BALL_RADIUS)
+            .context("building the ball source"),
+        "cloud_thin" => scenes::cloud_in_thin_medium::<f64>(n, seed, THIN_SIGMA_T)
+            .context("building the cloud in a thin medium"),
+        other => bail!("--problems: unknown problem {other:?} ({PROBLEMS})"),
     }
 }
 
@@ -161,8 +185,8 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
         bail!("--albedo: {} is outside [0, 1]", args.albedo);
     }
     for p in &args.problems {
-        if !matches!(p.as_str(), "point_source" | "cloud") {
-            bail!("--problems: unknown problem {p:?} (point_source, cloud)");
+        if !PROBLEMS.split(", ").any(|q| q == p) {
+            bail!("--problems: unknown problem {p:?} ({PROBLEMS})");
         }
     }
     for &n in &ns {

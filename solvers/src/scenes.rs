@@ -56,6 +56,68 @@ pub fn vacuum_cloud<T: Real>(n: usize, seed: u64) -> Result<Medium<T>, SolverErr
     Medium::new(grid, sigma_t, albedo, emission)
 }
 
+/// The point source's medium ([`point_source`]: unit cube, σt = `tau_extent`, `albedo`) with
+/// its unit power spread evenly over the voxels whose centres lie within `radius` of the
+/// centre voxel's, instead of one voxel: a source of fixed physical size, so that the
+/// discrete problems converge to one continuous problem as n grows (the one-voxel source's
+/// j = 1/Δl³ sharpens with n). The control of `multigrid_scaling`'s grid-independence runs.
+pub fn ball_source<T: Real>(
+    n: usize,
+    tau_extent: f64,
+    albedo: f64,
+    radius: f64,
+) -> Result<Medium<T>, SolverError> {
+    let (mut m, c) = point_source::<T>(n, tau_extent, albedo)?;
+    if !(radius.is_finite() && radius > 0.0) {
+        return Err(SolverError::BadParameter {
+            name: "radius",
+            value: radius,
+            reason: "must be finite and > 0",
+        });
+    }
+    let g = m.grid;
+    let centre = g.center(c[0], c[1], c[2]);
+    let inside = |p: usize| {
+        let [i, j, k] = g.coords(p);
+        let q = g.center(i, j, k);
+        (0..3).map(|a| (q[a] - centre[a]).powi(2)).sum::<f64>() <= radius * radius
+    };
+    let count = (0..g.len()).filter(|&p| inside(p)).count() as f64;
+    for (p, e) in m.emission.iter_mut().enumerate() {
+        *e = if inside(p) {
+            T::c(1.0 / (count * g.dl.powi(3)))
+        } else {
+            T::zero()
+        };
+    }
+    Ok(m)
+}
+
+/// FLD Fig 4's cloud ([`vacuum_cloud`]) with its vacuum filled by a thin medium of
+/// extinction `sigma_t` and albedo 0.9: the control that tells what vacuum (where FLD's
+/// D → φ/|∇φ| and its equation stops being elliptic) does to a solver's convergence.
+pub fn cloud_in_thin_medium<T: Real>(
+    n: usize,
+    seed: u64,
+    sigma_t: f64,
+) -> Result<Medium<T>, SolverError> {
+    if !(sigma_t.is_finite() && sigma_t > 0.0) {
+        return Err(SolverError::BadParameter {
+            name: "sigma_t",
+            value: sigma_t,
+            reason: "must be finite and > 0",
+        });
+    }
+    let mut m = vacuum_cloud::<T>(n, seed)?;
+    for (s, a) in m.sigma_t.iter_mut().zip(m.albedo.iter_mut()) {
+        if *s == T::zero() {
+            *s = T::c(sigma_t);
+            *a = T::c(0.9);
+        }
+    }
+    Ok(m)
+}
+
 /// A random heterogeneous medium for conformance and stress tests: per voxel, with
 /// probability `vacuum_fraction` vacuum (σt = 0), otherwise σt log-uniform in
 /// [0.1, 1000]/L; albedo uniform in [0, 1] with 10 % of voxels exactly 1; emission log-uniform

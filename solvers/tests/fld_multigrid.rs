@@ -546,3 +546,36 @@ fn auto_takes_each_branch_of_its_rule() {
     );
     assert_eq!((a.trace.solver.as_str(), &a.phi), ("sor", &s.phi));
 }
+
+/// Where the point source's growth of FLD-LP cycles with n comes from (issue 15 acceptance
+/// 2): its one emitting voxel (j = 1/Δl³) sharpens with n, so the discrete problems do not
+/// converge to one continuous problem. The same unit power over a ball of radius 0.1
+/// (`scenes::ball_source`, 3–4 voxels across at n = 33) is a fixed problem, and there
+/// multigrid's cycles to R̄/j̄ < 10⁻⁶ (τ = 4, albedo 0.9, defaults) differ by at most 25 %
+/// between n = 33 and 65 for CDA and FLD-LP. Measured (2026-12-06, the throwaway driver
+/// behind `multigrid_scaling`'s `ball_source`, n = 31, 63, 127, 255): ball CDA 5, 5, 5, 4 and
+/// FLD-LP 7, 7, 8, 8 cycles; one-voxel source CDA 5, 5, 5, 5 and FLD-LP 8, 9, 11, 13.
+#[test]
+fn cycles_do_not_grow_with_n_for_a_source_of_fixed_size() {
+    for lim in [FluxLimiter::Cda, FluxLimiter::LevermorePomraning] {
+        let cycles: Vec<usize> = [33, 65]
+            .iter()
+            .map(|&n| {
+                let m = scenes::ball_source::<f64>(n, 4.0, 0.9, 0.1).unwrap();
+                let power: f64 = m.emission.iter().sum::<f64>() * m.grid.dl.powi(3);
+                assert!((power - 1.0).abs() < 1e-12, "n = {n}: power {power}");
+                let cfg = FldConfig::fld(lim)
+                    .with_tolerance(1e-6)
+                    .with_max_iterations(100);
+                let s = mg(&m, &cfg, &MgConfig::default());
+                assert_eq!(s.stop, Stop::Converged, "{lim} n = {n}");
+                s.steps
+            })
+            .collect();
+        eprintln!("ball source {lim}: cycles {cycles:?} at n = 33, 65");
+        let (lo, hi) = (cycles[0].min(cycles[1]), cycles[0].max(cycles[1]));
+        assert!(4 * hi <= 5 * lo, "{lim}: {cycles:?}");
+    }
+    assert!(scenes::ball_source::<f64>(33, 4.0, 0.9, 0.0).is_err());
+    assert!(scenes::cloud_in_thin_medium::<f64>(17, 3, -1.0).is_err());
+}

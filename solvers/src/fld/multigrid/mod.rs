@@ -321,6 +321,20 @@
 //!   9, 10, 11, 13 (+44 %), F(4, 4) 7, 8, 9, 10 (+43 %; 16.2 s at 255 against 14.5 s). What
 //!   grows with n is then the coarse-grid correction's error, which points at the
 //!   rediscretised coarse operator (the Galerkin-type candidate above), not at the smoother.
+//!   **Two controls say where FLD-LP's growth comes from (2026-12-06, Zen 5 host,
+//!   `multigrid_scaling`'s `ball_source` and `cloud_thin`, cycles at n = 31, 63, 127, 255).**
+//!   The point source's one emitting voxel (j = 1/Δl³) is a source that sharpens with n, so
+//!   its discrete problems do not converge to one continuous problem: the same unit power
+//!   over a ball of radius 0.1 ([`crate::scenes::ball_source`]) takes FLD-LP 7, 7, 8, 8
+//!   cycles (+14 %; the one-voxel source 9, 10, 11, 13, +44 %) and CDA 5, 5, 5, 4 (+25 %):
+//!   grid-independent within issue 15's 25 % for both
+//!   (`cycles_do_not_grow_with_n_for_a_source_of_fixed_size` pins n = 33, 65). The cloud's
+//!   growth is mostly its vacuum, where FLD's D → φ/|∇φ| and the equation becomes a
+//!   first-order (free-streaming) one that a point smoother with isotropic coarsening does not
+//!   resolve: with the vacuum filled by σt = 0.5 ([`crate::scenes::cloud_in_thin_medium`])
+//!   FLD-LP takes 11, 13, 15, 19 (+73 %, against 14, 21, 54, 154 in vacuum) and CDA 8, 9, 9,
+//!   10 (+25 %, against 10, 12, 14, 16). So acceptance 2 holds for resolved sources without
+//!   vacuum, and not for FLD-LP where the medium is optically thin (+73 %) or vacuum.
 //! * **Galerkin coarse operators ([`CoarseOp::Galerkin`], CDA only; 2026-12-06), first
 //!   measured outside the crate (`scripts/mg-coarse-operators.py`, numpy/scipy/pyamg).** The
 //!   script rebuilds the CDA operator of FLD Eq 32 on the vacuum cloud (σt = 20, albedo 0.9
