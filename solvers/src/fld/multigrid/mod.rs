@@ -232,6 +232,11 @@
 //!   relative (both solvers stop at R̄/j̄ < 10⁻⁶). With the first rule (10⁶ voxels for FLD
 //!   too) `flux_limiters` took 17.9 s: 49 of its 66 solves ran 200 SOR sweeps before
 //!   multigrid, which lost where SOR needed 201–300 (Kershaw α = 0.5: 0.17 → 0.29 s).
+//!   The full `figures` run with this default took 3988 s on that host; the two experiments
+//!   whose default changed were 66.8 s of the run before (1.7 %: the run's time is POP, the
+//!   path tracer, Mitsuba, and experiments that run both solvers by design), so the run as a
+//!   whole gained about 0.4 % (46.8 s saved, 29.2 s spent on the atlas's new `cda:mg` and
+//!   `fld:lp:mg` points).
 //!   Pinned by `auto_takes_each_branch_of_its_rule` (`tests/fld_multigrid.rs`) and
 //!   `auto_hands_a_slow_sor_solve_to_multigrid_in_the_experiment`.
 //! * **Issue 15's acceptance 3 at 255³, and what is left to try (2026-12-06, same 2-vCPU AMD
