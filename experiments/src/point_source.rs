@@ -457,10 +457,12 @@ fn solve_case(
         knudsen: case.knudsen,
         ..FldConfig::default()
     };
-    let every = if matches!(solver, fld::Solver::Multigrid(_)) {
-        1
-    } else {
+    // SOR reports every 25th iteration; multigrid (also under `auto`, whose SOR part is at
+    // most 200 sweeps) every cycle.
+    let every = if matches!(solver, fld::Solver::Sor) {
         25
+    } else {
+        1
     };
     let sol = fld::solve_with(backend, &medium, &boundary, &cfg, &solver, |it, r| {
         if it % every == 0 {

@@ -82,13 +82,11 @@ pub fn ball_source<T: Real>(
         let q = g.center(i, j, k);
         (0..3).map(|a| (q[a] - centre[a]).powi(2)).sum::<f64>() <= radius * radius
     };
-    let count = (0..g.len()).filter(|&p| inside(p)).count() as f64;
-    for (p, e) in m.emission.iter_mut().enumerate() {
-        *e = if inside(p) {
-            T::c(1.0 / (count * g.dl.powi(3)))
-        } else {
-            T::zero()
-        };
+    let ball: Vec<usize> = (0..g.len()).filter(|&p| inside(p)).collect();
+    let j = T::c(1.0 / (ball.len() as f64 * g.dl.powi(3)));
+    m.emission.fill(T::zero());
+    for p in ball {
+        m.emission[p] = j;
     }
     Ok(m)
 }

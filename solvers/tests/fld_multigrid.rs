@@ -550,9 +550,10 @@ fn auto_takes_each_branch_of_its_rule() {
 /// Where the point source's growth of FLD-LP cycles with n comes from (issue 15 acceptance
 /// 2): its one emitting voxel (j = 1/Δl³) sharpens with n, so the discrete problems do not
 /// converge to one continuous problem. The same unit power over a ball of radius 0.1
-/// (`scenes::ball_source`, 3–4 voxels across at n = 33) is a fixed problem, and there
+/// (`scenes::ball_source`, a radius of 3.3 voxels at n = 33) is a fixed problem, and there
 /// multigrid's cycles to R̄/j̄ < 10⁻⁶ (τ = 4, albedo 0.9, defaults) differ by at most 25 %
-/// between n = 33 and 65 for CDA and FLD-LP. Measured (2026-12-06, the throwaway driver
+/// between n = 33 and 65 for CDA and FLD-LP (measured: CDA 5, 5; FLD-LP 7, 7). Measured
+/// (2026-12-06, the throwaway driver
 /// behind `multigrid_scaling`'s `ball_source`, n = 31, 63, 127, 255): ball CDA 5, 5, 5, 4 and
 /// FLD-LP 7, 7, 8, 8 cycles; one-voxel source CDA 5, 5, 5, 5 and FLD-LP 8, 9, 11, 13.
 #[test]

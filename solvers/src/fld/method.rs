@@ -44,15 +44,13 @@ impl FldMethod {
     }
 
     /// The same method solved by FAS multigrid with default cycle settings.
-    pub fn multigrid(mut self) -> Self {
-        self.solver = Solver::Multigrid(MgConfig::default());
-        self
+    pub fn multigrid(self) -> Self {
+        self.with_solver(Solver::Multigrid(MgConfig::default()))
     }
 
-    /// The same method solved by [`Solver::Auto`] (multigrid where it was measured faster,
-    /// SOR elsewhere and as its fallback) with default cycle settings.
-    pub fn auto(mut self) -> Self {
-        self.solver = Solver::Auto(MgConfig::default());
+    /// Builder: the solver ([`Solver::Auto`] is the variant `:auto`).
+    pub fn with_solver(mut self, solver: Solver) -> Self {
+        self.solver = solver;
         self
     }
 
@@ -232,12 +230,8 @@ pub const CDA: MethodFamily = MethodFamily {
         let (_, a, face, solver) = options(variant, false)?;
         let m = FldMethod::new(FluxLimiter::Cda)
             .with_anisotropy(a)
-            .with_vacuum_face(face);
-        let m = match solver {
-            Solver::Sor => m,
-            Solver::Multigrid(_) => m.multigrid(),
-            Solver::Auto(_) => m.auto(),
-        };
+            .with_vacuum_face(face)
+            .with_solver(solver);
         Ok(Box::new(m.with_params(params)?))
     },
 };
@@ -258,12 +252,8 @@ pub const FLD: MethodFamily = MethodFamily {
         };
         let m = FldMethod::new(limiter)
             .with_anisotropy(a)
-            .with_vacuum_face(face);
-        let m = match solver {
-            Solver::Sor => m,
-            Solver::Multigrid(_) => m.multigrid(),
-            Solver::Auto(_) => m.auto(),
-        };
+            .with_vacuum_face(face)
+            .with_solver(solver);
         Ok(Box::new(m.with_params(params)?))
     },
 };

@@ -610,9 +610,10 @@ pub enum Solver {
     /// * smaller grids start with SOR and hand the solve to multigrid (from scratch) if SOR
     ///   has not converged after [`AUTO_SOR_SWEEPS`] sweeps;
     /// * if multigrid stops without converging (`stalled`, the cap, non-finite) or cannot
-    ///   run (the Marshak face, its memory budget), SOR solves from scratch with the full
-    ///   iteration cap;
-    /// * with the Marshak face ([`VacuumFace::Marshak`], which multigrid does not have) SOR.
+    ///   run (`Unsupported` settings, its memory budget), SOR solves from scratch with the
+    ///   full iteration cap;
+    /// * with the Marshak face ([`VacuumFace::Marshak`], which multigrid does not have) SOR
+    ///   alone.
     ///
     /// The result says which solvers ran in [`FldTrace::solver`] (e.g. `sor>multigrid`);
     /// its seconds, setup seconds and work units are the sums over them, its steps and
@@ -710,18 +711,11 @@ fn solve_auto(
     mg: &multigrid::MgConfig,
     mut observer: impl FnMut(usize, f64),
 ) -> Result<FldSolution<f64>, SolverError> {
-    // What the solvers that ran before the last one cost.
-    let mut before = (Vec::<&'static str>::new(), 0.0, 0.0, 0.0);
-    let mut spend = |s: &FldSolution<f64>, name| {
-        before.0.push(name);
-        before.1 += s.seconds;
-        before.2 += s.setup_seconds;
-        before.3 += s.trace.work_units;
-    };
     if config.vacuum_face == VacuumFace::Marshak {
         // Multigrid has the paper's face only.
         return solve(backend, medium, boundary, config, observer);
     }
+    let mut before = Spent::default();
     if medium.grid.len() < auto_multigrid_voxels(config.limiter) {
         let budget = FldConfig {
             max_iterations: config.max_iterations.min(AUTO_SOR_SWEEPS),
@@ -731,29 +725,50 @@ fn solve_auto(
         if sor.stop != Stop::Cap || budget.max_iterations == config.max_iterations {
             return Ok(sor);
         }
-        spend(&sor, "sor");
+        before.add(&sor);
     }
     let last = match solve_multigrid(backend, medium, boundary, config, mg, &mut observer) {
         Ok(m) if m.converged() => m,
         Ok(m) => {
-            spend(&m, "multigrid");
+            before.add(&m);
             solve(backend, medium, boundary, config, &mut observer)?
         }
-        // Multigrid cannot run here (the Marshak face, its memory budget): SOR can.
+        // Multigrid cannot run here (`Unsupported` settings, its memory budget): SOR can.
         Err(SolverError::Unsupported(_) | SolverError::TooLarge(_)) => {
             solve(backend, medium, boundary, config, &mut observer)?
         }
         Err(e) => return Err(e),
     };
-    let (mut names, seconds, setup, work) = before;
-    names.push(last.trace.solver_name());
-    let mut sol = last;
-    sol.trace.seconds_to_tolerance = sol.trace.seconds_to_tolerance.map(|t| t + seconds);
-    sol.seconds += seconds;
-    sol.setup_seconds += setup;
-    sol.trace.work_units += work;
-    sol.trace.solver = names.join(">");
-    Ok(sol)
+    Ok(before.onto(last))
+}
+
+/// What the solvers [`Solver::Auto`] ran before its last one cost (their φ is dropped).
+#[derive(Default)]
+struct Spent {
+    solvers: Vec<String>,
+    seconds: f64,
+    setup_seconds: f64,
+    work_units: f64,
+}
+
+impl Spent {
+    fn add(&mut self, s: &FldSolution<f64>) {
+        self.solvers.push(s.trace.solver.clone());
+        self.seconds += s.seconds;
+        self.setup_seconds += s.setup_seconds;
+        self.work_units += s.trace.work_units;
+    }
+
+    /// `last` with these costs added and every solver named in [`FldTrace::solver`].
+    fn onto(mut self, mut last: FldSolution<f64>) -> FldSolution<f64> {
+        last.trace.seconds_to_tolerance = last.trace.seconds_to_tolerance.map(|t| t + self.seconds);
+        last.seconds += self.seconds;
+        last.setup_seconds += self.setup_seconds;
+        last.trace.work_units += self.work_units;
+        self.solvers.push(std::mem::take(&mut last.trace.solver));
+        last.trace.solver = self.solvers.join(">");
+        last
+    }
 }
 
 /// FLD's part of a [`Solution`]: the residual history and the work it cost.
