@@ -10,6 +10,12 @@
 //! x-neighbours of voxel m of a row are entries m + s − 1 and m + s of the other colour's
 //! row; its y/z-neighbours are entry m of the adjacent rows of the other colour.
 //!
+//! ## Order
+//! On grids of four slabs or more the two colour passes are fused slab by slab
+//! (`CpuFld::fused_with`): red slab k, then black slab k − 1, whose red neighbours are
+//! then final and still in cache. The result is bit-identical to the red pass followed by
+//! the black pass, which smaller grids (and the tests) run.
+//!
 //! Per voxel and pass (FLD Algorithm 1): R by Eqs 34–35, D_p by Eq 33, D_ps = (D_p + D_s)/2,
 //! φ'_p by Eq 32, SOR by Eq 36, residual by Eq 37 (before the update; see [`super`]).
 
@@ -295,9 +301,12 @@ impl<T: Real> CpuFld<T> {
             .map(|f| [compact(&f[0]), compact(&f[1])])
     }
 
-    /// Bytes one iteration must move at least, counting every packed field once per pass it
-    /// is read or written (medium 3 fields + own φ, D read and written + other colour φ, D
-    /// read), i.e. 9 values per voxel per iteration for FLD and 7 for CDA (D is constant).
+    /// Bytes one iteration moves when the two colour passes run one after the other, counting
+    /// every packed field once per pass it is read or written (medium 3 fields + own φ, D
+    /// read and written + other colour φ, D read), i.e. 9 values per voxel per iteration for
+    /// FLD and 7 for CDA (D is constant): the work the benches' effective bandwidth is
+    /// defined by. The fused passes (`CpuFld::fused_with`) read the other colour's φ and D
+    /// from cache, so they move 7 and 5 values from memory.
     pub fn bytes_per_iteration(&self) -> usize {
         let per_voxel = if self.config.limiter.is_constant() {
             7
@@ -537,7 +546,11 @@ impl<T: Real> CpuFld<T> {
 
     /// The red pass then the black pass; returns Σ residual² of both.
     fn passes(&mut self) -> f64 {
-        let sumsq = self.pass(0) + self.pass(1);
+        let sumsq = if self.fused() {
+            self.fused_passes()
+        } else {
+            self.pass(0) + self.pass(1)
+        };
         self.black_x_ends_fresh = self.x_ends_in_pass();
         sumsq
     }
@@ -681,13 +694,10 @@ impl<T: Real> CpuFld<T> {
         c: usize,
         limiter: L,
     ) -> f64 {
-        let [nx, ny, nz] = self.grid.n;
+        let [_, ny, nz] = self.grid.n;
         let h = self.h;
         let slab = ny * h;
-        let p = self.params;
-        let window = ResidualWindow::new(&self.grid, self.config.residual_margin);
-        let (lo, hi) = (window.lo, window.hi);
-        let x_ends = FLD && self.x_ends_in_pass();
+        let sweep = self.sweep::<FLD, M, L>(&limiter);
         let [phi0, phi1] = &mut self.phi;
         let [d0, d1] = &mut self.d;
         let (phi_c, phi_o, d_c, d_o) = if c == 0 {
@@ -695,9 +705,8 @@ impl<T: Real> CpuFld<T> {
         } else {
             (phi1, &*phi0, d1, &*d0)
         };
-        let (sig, absorb, src) = (&self.sig[c], &self.absorb[c], &self.src[c]);
-        let (vac_c, vac_o) = (&self.vac[c], &self.vac[1 - c]);
-        let limiter = &limiter;
+        let own = ColourFields::of(&self.sig, &self.absorb, &self.src, &self.vac, c);
+        let vac_o = &self.vac[1 - c];
         // At least four tasks per thread (load balance on many cores), at most SLAB_GROUP slabs.
         let group = (nz / (4 * rayon::current_num_threads())).clamp(1, SLAB_GROUP);
         let partial: Vec<f64> = phi_c
@@ -717,58 +726,18 @@ impl<T: Real> CpuFld<T> {
                         if k == 0 || k + 1 == nz {
                             continue;
                         }
-                        let phi_slab = &mut phi_group[kk * slab..(kk + 1) * slab];
-                        let d_slab = &mut d_group[kk * slab..(kk + 1) * slab];
-                        let prev = &mut prev_group[kk * 2 * ny..(kk + 1) * 2 * ny];
-                        for j in j0..(j0 + ROW_BLOCK).min(ny - 1) {
-                            let s = (c + j + k) & 1;
-                            let row = j * h;
-                            let g = (k * ny + j) * h;
-                            let rows = Rows::around(phi_o, g, h, slab);
-                            let drows = Rows::around(d_o, g, h, slab);
-                            let vrows = Rows::around(vac_o, g, h, slab);
-                            let counted_row = window.counts_row(j, k);
-                            // Interior i = 2m + s ∈ [1, nx − 2].
-                            let m_lo = 1 - s;
-                            let m_hi = (nx - 2 - s) / 2;
-                            // Counted i ∈ [lo, hi_x] ⇒ m ∈ [⌈(lo − s)/2⌉, ⌊(hi_x − s)/2⌋].
-                            let (cm_lo, cm_hi) = if counted_row && hi[0] + 1 > lo {
-                                ((lo - s).div_ceil(2), (hi[0] - s) / 2 + 1)
-                            } else {
-                                (0, 0)
-                            };
-                            *acc = *acc
-                                + update_row::<T, FLD, M, L>(
-                                    &mut phi_slab[row..row + h],
-                                    &mut d_slab[row..row + h],
-                                    &sig[g..g + h],
-                                    &absorb[g..g + h],
-                                    &src[g..g + h],
-                                    &vac_c[g..g + h],
-                                    &rows,
-                                    &drows,
-                                    &vrows,
-                                    s,
-                                    m_lo..m_hi + 1,
-                                    cm_lo..cm_hi,
-                                    &p,
-                                    limiter,
-                                    &mut scratch,
-                                );
-                            if x_ends {
-                                update_x_ends(
-                                    nx,
-                                    s,
-                                    &phi_slab[row..row + h],
-                                    &mut d_slab[row..row + h],
-                                    &sig[g..g + h],
-                                    &rows,
-                                    (c == 1).then_some(&mut prev[2 * j..2 * j + 2]),
-                                    &p,
-                                    limiter,
-                                );
-                            }
-                        }
+                        let mut io = SlabIo {
+                            c,
+                            k,
+                            phi: &mut phi_group[kk * slab..(kk + 1) * slab],
+                            d: &mut d_group[kk * slab..(kk + 1) * slab],
+                            prev: &mut prev_group[kk * 2 * ny..(kk + 1) * 2 * ny],
+                            own: own.slab(k, slab),
+                            phi_o: around(phi_o, k, slab),
+                            d_o: around(d_o, k, slab),
+                            vac_o: around(vac_o, k, slab),
+                        };
+                        sweep.rows(&mut io, j0..(j0 + ROW_BLOCK).min(ny - 1), acc, &mut scratch);
                     }
                 }
                 sums.into_iter().map(|a| a.f())
@@ -777,6 +746,366 @@ impl<T: Real> CpuFld<T> {
         // Summed in slab order so the result does not depend on the thread count.
         partial.iter().sum()
     }
+
+    /// Whether [`CpuFld::passes`] runs the two colour passes fused (`CpuFld::fused_with`):
+    /// grids of at least [`FUSE_MIN_SLABS`] slabs.
+    fn fused(&self) -> bool {
+        self.grid.n[2] >= FUSE_MIN_SLABS
+    }
+
+    /// [`CpuFld::fused_with`] with the face treatment and the limiter resolved.
+    fn fused_passes(&mut self) -> f64 {
+        match self.config.vacuum_face {
+            super::VacuumFace::Paper => self.fused_face::<false>(),
+            super::VacuumFace::Marshak => self.fused_face::<true>(),
+        }
+    }
+
+    fn fused_face<const M: bool>(&mut self) -> f64 {
+        match self.config.limiter {
+            FluxLimiter::Cda => self.fused_with::<false, M, _>(|_| (T::zero(), T::one())),
+            lim => super::limiter::with_limiter!(lim, |f| self.fused_with::<true, M, _>(f)),
+        }
+    }
+
+    /// The red and the black pass of one iteration, fused slab by slab. φ, D, the black
+    /// x-ends' kept D and the returned Σ residual² are bit-identical to `pass(0) + pass(1)`
+    /// (test `fused_passes_are_bit_identical_to_two_passes`).
+    ///
+    /// The slabs are cut into tasks [a, b) of at least two slabs. A task updates red slab
+    /// k and then black slab k − 1, for k = a … b − 1, while the rows black slab k − 1 reads
+    /// (red slabs k − 2 … k) are still in cache: a black voxel reads only red neighbours, all
+    /// updated by then, and a red voxel only black ones (slabs k − 1 … k + 1), none updated
+    /// yet. The black slabs a and b − 1 of a task read red slabs of the tasks beside it, so
+    /// they wait for a second parallel phase, when every red slab is done (in the first
+    /// phase they are only read). Each voxel is updated from the same values by the same
+    /// operations as in the two passes, each slab's residual sum runs over its rows in the
+    /// same order, and the slab sums are added red slabs first, then black, in slab order,
+    /// as the two passes add them.
+    fn fused_with<const FLD: bool, const M: bool, L: Fn(T) -> (T, T) + Sync>(
+        &mut self,
+        limiter: L,
+    ) -> f64 {
+        let [_, ny, nz] = self.grid.n;
+        let h = self.h;
+        let slab = ny * h;
+        let sweep = self.sweep::<FLD, M, L>(&limiter);
+        // Task starts a_0 = 0 < a_1 < … < a_T = nz, each task at least two slabs.
+        let size = (nz / (FUSE_TASKS_PER_THREAD * rayon::current_num_threads())).max(2);
+        let tasks = (nz / size).max(1);
+        let starts: Vec<usize> = (0..tasks).map(|t| t * size).chain([nz]).collect();
+        // The black fields are cut into joints J_t = [a_t − 1, a_t + 1) ∩ [0, nz) (J_0 = {0},
+        // J_T = {nz − 1}) and task interiors I_t = [a_t + 1, a_{t+1} − 1) between them:
+        // `cuts` = lo(J_0), hi(J_0), lo(J_1), …, hi(J_T), the pieces J_0, I_0, J_1, …, J_T.
+        let joint = |t: usize| (starts[t].max(1) - 1, (starts[t] + 1).min(nz));
+        let cuts: Vec<usize> = (0..=tasks)
+            .flat_map(|t| {
+                let (lo, hi) = joint(t);
+                [lo, hi]
+            })
+            .collect();
+        let [phi0, phi1] = &mut self.phi;
+        let [d0, d1] = &mut self.d;
+        let own =
+            [0, 1].map(|c| ColourFields::of(&self.sig, &self.absorb, &self.src, &self.vac, c));
+        let vac = [&self.vac[0][..], &self.vac[1][..]];
+        let (joints_phi, mut inner_phi) = evens_odds(split_slabs(phi1, slab, &cuts));
+        let (joints_d, mut inner_d) = evens_odds(split_slabs(d1, slab, &cuts));
+        let (mut joints_prev, mut inner_prev) =
+            evens_odds(split_slabs(&mut self.black_x_ends_prev, 2 * ny, &cuts));
+        let mut red_sums = vec![0.0; nz];
+        let mut black_sums = vec![0.0; nz];
+        // Phase 1: every red slab, and the black slabs of the task interiors.
+        {
+            let (jp, jd) = (&joints_phi, &joints_d);
+            let per_task: Vec<(Vec<f64>, Vec<f64>)> = split_slabs(phi0, slab, &starts)
+                .into_par_iter()
+                .zip(split_slabs(d0, slab, &starts))
+                .zip(inner_phi.par_iter_mut().zip(inner_d.par_iter_mut()))
+                .zip(inner_prev.par_iter_mut())
+                .enumerate()
+                .map(|(t, (((rphi, rd), (iphi, id)), iprev))| {
+                    let (a, b) = (starts[t], starts[t + 1]);
+                    let (j0, i0, j1) = (joint(t).0, joint(t).1, joint(t + 1).0);
+                    let mut scratch = vec![T::zero(); h];
+                    let (mut red, mut black) = (vec![0.0; b - a], vec![0.0; b - a]);
+                    for k in a..b {
+                        if k > 0 && k + 1 < nz {
+                            let mut io = SlabIo {
+                                c: 0,
+                                k,
+                                phi: &mut rphi[(k - a) * slab..(k - a + 1) * slab],
+                                d: &mut rd[(k - a) * slab..(k - a + 1) * slab],
+                                prev: &mut [],
+                                own: own[0].slab(k, slab),
+                                phi_o: around_in(
+                                    [(&*jp[t], j0), (*iphi, i0), (&*jp[t + 1], j1)],
+                                    k,
+                                    slab,
+                                ),
+                                d_o: around_in(
+                                    [(&*jd[t], j0), (*id, i0), (&*jd[t + 1], j1)],
+                                    k,
+                                    slab,
+                                ),
+                                vac_o: around(vac[1], k, slab),
+                            };
+                            let mut acc = T::zero();
+                            sweep.rows(&mut io, 1..ny - 1, &mut acc, &mut scratch);
+                            red[k - a] = acc.f();
+                        }
+                        // Black slab z = k − 1 if it is in I_t: its red neighbours are done.
+                        if k > i0 {
+                            let z = k - 1;
+                            let mut io = SlabIo {
+                                c: 1,
+                                k: z,
+                                phi: &mut iphi[(z - i0) * slab..(z - i0 + 1) * slab],
+                                d: &mut id[(z - i0) * slab..(z - i0 + 1) * slab],
+                                prev: &mut iprev[(z - i0) * 2 * ny..(z - i0 + 1) * 2 * ny],
+                                own: own[1].slab(z, slab),
+                                phi_o: around_in([(&*rphi, a); 3], z, slab),
+                                d_o: around_in([(&*rd, a); 3], z, slab),
+                                vac_o: around(vac[0], z, slab),
+                            };
+                            let mut acc = T::zero();
+                            sweep.rows(&mut io, 1..ny - 1, &mut acc, &mut scratch);
+                            black[z - a] = acc.f();
+                        }
+                    }
+                    (red, black)
+                })
+                .collect();
+            for (t, (red, black)) in per_task.into_iter().enumerate() {
+                let a = starts[t];
+                red_sums[a..a + red.len()].copy_from_slice(&red);
+                // The joints' slabs are still zero here; phase 2 sets them.
+                black_sums[a..a + black.len()].copy_from_slice(&black);
+            }
+        }
+        // Phase 2: the black slabs of the joints between tasks (J_1 … J_{T−1}).
+        let (rphi, rd) = (&phi0[..], &d0[..]);
+        let mut jphi = joints_phi;
+        let mut jd = joints_d;
+        let joint_sums: Vec<Vec<(usize, f64)>> = jphi
+            .par_iter_mut()
+            .zip(jd.par_iter_mut())
+            .zip(joints_prev.par_iter_mut())
+            .enumerate()
+            .map(|(t, ((jp, jdd), jprev))| {
+                let mut scratch = vec![T::zero(); h];
+                let lo = joint(t).0;
+                let n = jp.len() / slab;
+                (lo..lo + n)
+                    .filter(|&z| z > 0 && z + 1 < nz)
+                    .map(|z| {
+                        let mut io = SlabIo {
+                            c: 1,
+                            k: z,
+                            phi: &mut jp[(z - lo) * slab..(z - lo + 1) * slab],
+                            d: &mut jdd[(z - lo) * slab..(z - lo + 1) * slab],
+                            prev: &mut jprev[(z - lo) * 2 * ny..(z - lo + 1) * 2 * ny],
+                            own: own[1].slab(z, slab),
+                            phi_o: around(rphi, z, slab),
+                            d_o: around(rd, z, slab),
+                            vac_o: around(vac[0], z, slab),
+                        };
+                        let mut acc = T::zero();
+                        sweep.rows(&mut io, 1..ny - 1, &mut acc, &mut scratch);
+                        (z, acc.f())
+                    })
+                    .collect()
+            })
+            .collect();
+        for (z, v) in joint_sums.into_iter().flatten() {
+            black_sums[z] = v;
+        }
+        red_sums.iter().sum::<f64>() + black_sums.iter().sum::<f64>()
+    }
+
+    /// The constants of one colour pass.
+    fn sweep<'l, const FLD: bool, const M: bool, L: Fn(T) -> (T, T)>(
+        &self,
+        limiter: &'l L,
+    ) -> Sweep<'l, T, L, FLD, M> {
+        Sweep {
+            n: self.grid.n,
+            h: self.h,
+            p: self.params,
+            window: ResidualWindow::new(&self.grid, self.config.residual_margin),
+            x_ends: FLD && self.x_ends_in_pass(),
+            limiter,
+        }
+    }
+}
+
+/// The constants of one colour pass (grid, packed row length, parameters, residual window,
+/// whether the row passes do the x-ends, the limiter).
+struct Sweep<'l, T, L, const FLD: bool, const M: bool> {
+    n: [usize; 3],
+    h: usize,
+    p: Params<T>,
+    window: ResidualWindow,
+    x_ends: bool,
+    limiter: &'l L,
+}
+
+impl<T: Real, L: Fn(T) -> (T, T), const FLD: bool, const M: bool> Sweep<'_, T, L, FLD, M> {
+    /// Updates the interior rows `rows` of one slab, in ascending j, adding each row's
+    /// Σ residual² to `acc` in that order.
+    #[inline(always)]
+    fn rows(
+        &self,
+        io: &mut SlabIo<'_, T>,
+        rows: std::ops::Range<usize>,
+        acc: &mut T,
+        scratch: &mut [T],
+    ) {
+        let [nx, _, _] = self.n;
+        let (h, k, lo, hi) = (self.h, io.k, self.window.lo, self.window.hi);
+        for j in rows {
+            let s = (io.c + j + k) & 1;
+            let row = j * h;
+            let prow = Rows::new(&io.phi_o, j, h);
+            let drows = Rows::new(&io.d_o, j, h);
+            let vrows = Rows::new(&io.vac_o, j, h);
+            let counted_row = self.window.counts_row(j, k);
+            // Interior i = 2m + s ∈ [1, nx − 2].
+            let m_lo = 1 - s;
+            let m_hi = (nx - 2 - s) / 2;
+            // Counted i ∈ [lo, hi_x] ⇒ m ∈ [⌈(lo − s)/2⌉, ⌊(hi_x − s)/2⌋].
+            let (cm_lo, cm_hi) = if counted_row && hi[0] + 1 > lo {
+                ((lo - s).div_ceil(2), (hi[0] - s) / 2 + 1)
+            } else {
+                (0, 0)
+            };
+            *acc = *acc
+                + update_row::<T, FLD, M, L>(
+                    &mut io.phi[row..row + h],
+                    &mut io.d[row..row + h],
+                    &io.own.sig[row..row + h],
+                    &io.own.absorb[row..row + h],
+                    &io.own.src[row..row + h],
+                    &io.own.vac[row..row + h],
+                    &prow,
+                    &drows,
+                    &vrows,
+                    s,
+                    m_lo..m_hi + 1,
+                    cm_lo..cm_hi,
+                    &self.p,
+                    self.limiter,
+                    scratch,
+                );
+            if self.x_ends {
+                update_x_ends(
+                    nx,
+                    s,
+                    &io.phi[row..row + h],
+                    &mut io.d[row..row + h],
+                    &io.own.sig[row..row + h],
+                    &prow,
+                    (io.c == 1).then(|| &mut io.prev[2 * j..2 * j + 2]),
+                    &self.p,
+                    self.limiter,
+                );
+            }
+        }
+    }
+}
+
+/// The read-only fields of one colour (σ, absorption, source, vacuum flag), whole.
+#[derive(Clone, Copy)]
+struct ColourFields<'a, T> {
+    sig: &'a [T],
+    absorb: &'a [T],
+    src: &'a [T],
+    vac: &'a [T],
+}
+
+impl<'a, T> ColourFields<'a, T> {
+    fn of(
+        sig: &'a [Vec<T>; 2],
+        absorb: &'a [Vec<T>; 2],
+        src: &'a [Vec<T>; 2],
+        vac: &'a [Vec<T>; 2],
+        c: usize,
+    ) -> Self {
+        Self {
+            sig: &sig[c],
+            absorb: &absorb[c],
+            src: &src[c],
+            vac: &vac[c],
+        }
+    }
+
+    /// The same fields cut to slab k.
+    fn slab(&self, k: usize, slab: usize) -> Self {
+        let cut = |f: &'a [T]| &f[k * slab..(k + 1) * slab];
+        Self {
+            sig: cut(self.sig),
+            absorb: cut(self.absorb),
+            src: cut(self.src),
+            vac: cut(self.vac),
+        }
+    }
+}
+
+/// What a colour pass reads and writes in slab k of colour c: its own φ, D and (black) kept
+/// x-end D, its own read-only fields, and the other colour's φ, D and vacuum flags in
+/// slabs k − 1, k, k + 1.
+struct SlabIo<'a, T> {
+    c: usize,
+    k: usize,
+    phi: &'a mut [T],
+    d: &'a mut [T],
+    prev: &'a mut [T],
+    own: ColourFields<'a, T>,
+    phi_o: [&'a [T]; 3],
+    d_o: [&'a [T]; 3],
+    vac_o: [&'a [T]; 3],
+}
+
+/// Slabs k − 1, k, k + 1 of `f`.
+fn around<T>(f: &[T], k: usize, slab: usize) -> [&[T]; 3] {
+    [k - 1, k, k + 1].map(|z| &f[z * slab..(z + 1) * slab])
+}
+
+/// Slabs k − 1, k, k + 1 from pieces (values, index of their first slab) that together
+/// hold them.
+fn around_in<T>(parts: [(&[T], usize); 3], k: usize, slab: usize) -> [&[T]; 3] {
+    [k - 1, k, k + 1].map(|z| {
+        for (f, z0) in parts {
+            if z >= z0 && (z - z0) * slab < f.len() {
+                return &f[(z - z0) * slab..(z - z0 + 1) * slab];
+            }
+        }
+        unreachable!("slab {z} is in none of the pieces a fused task reads")
+    })
+}
+
+/// `f` cut at slabs `at` (ascending, from 0 to the last slab), `per` values a slab.
+fn split_slabs<'a, T>(mut f: &'a mut [T], per: usize, at: &[usize]) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(at.len().saturating_sub(1));
+    for w in at.windows(2) {
+        let (piece, rest) = f.split_at_mut((w[1] - w[0]) * per);
+        out.push(piece);
+        f = rest;
+    }
+    out
+}
+
+/// The pieces at even and at odd positions.
+fn evens_odds<P>(pieces: Vec<P>) -> (Vec<P>, Vec<P>) {
+    let (mut even, mut odd) = (Vec::new(), Vec::new());
+    for (i, p) in pieces.into_iter().enumerate() {
+        if i % 2 == 0 {
+            even.push(p);
+        } else {
+            odd.push(p);
+        }
+    }
+    (even, odd)
 }
 
 /// The boundary voxels of one z-slab gathered for [`CpuFld::update_boundary_d`]: where each
@@ -832,14 +1161,15 @@ struct Rows<'a, T> {
 }
 
 impl<'a, T> Rows<'a, T> {
-    /// The rows around packed row start `g` of `f` (row length `h`, slab length `slab`).
-    fn around(f: &'a [T], g: usize, h: usize, slab: usize) -> Self {
+    /// The rows around row j of the middle of three slabs (below, here, above; row length `h`).
+    fn new(slabs: &[&'a [T]; 3], j: usize, h: usize) -> Self {
+        let g = j * h;
         Self {
-            x: &f[g..g + h],
-            ym: &f[g - h..g],
-            yp: &f[g + h..g + 2 * h],
-            zm: &f[g - slab..g - slab + h],
-            zp: &f[g + slab..g + slab + h],
+            x: &slabs[1][g..g + h],
+            ym: &slabs[1][g - h..g],
+            yp: &slabs[1][g + h..g + 2 * h],
+            zm: &slabs[0][g..g + h],
+            zp: &slabs[2][g..g + h],
         }
     }
 
@@ -1045,6 +1375,11 @@ fn update_x_ends<T: Real, L: Fn(T) -> (T, T)>(
 const SLAB_GROUP: usize = 8;
 /// See [`SLAB_GROUP`].
 const ROW_BLOCK: usize = 32;
+/// Fused passes (`CpuFld::fused_with`): tasks per rayon thread (each at least two slabs),
+/// and the fewest slabs a grid must have to be fused.
+const FUSE_TASKS_PER_THREAD: usize = 2;
+/// See [`FUSE_TASKS_PER_THREAD`].
+const FUSE_MIN_SLABS: usize = 4;
 
 /// The packed row length: ⌈nx/2⌉, plus one unused slot where that is even. With a row
 /// length of a power of two the z-neighbour rows of a voxel (a slab apart: ny·h values) fall

@@ -296,6 +296,43 @@
 //!   number and D). A timing-only build without the Knudsen division (wrong numbers) took
 //!   72.5–73.2 ms against 76.0 ms, so the divider is now a large part of f64 FLD-LP's
 //!   remaining cost, and a cheaper limiter alone will not reach 0.4 in f64 either.
+//!   **Fused colour passes (2026-12-06, 2-vCPU AMD EPYC Zen 5, family 26 model 2, 32 MiB L3;
+//!   `CpuFld::fused_with`).** On grids of four slabs or more an iteration no longer runs the
+//!   red pass over the whole grid and then the black pass: each task of consecutive slabs
+//!   updates red slab k and then black slab k − 1 while the red slabs k − 2 … k that slab
+//!   reads are still in cache, and the black slabs at the tasks' ends follow in a second
+//!   parallel phase. A black voxel reads only red neighbours and a red one only black ones,
+//!   so every voxel sees the same values as in the two passes: φ, D, the kept x-end D and
+//!   the residual sums are bit-identical (`fused_passes_are_bit_identical_to_two_passes`,
+//!   one to three threads, both faces; and the hash of φ, D and the residual history after
+//!   30 iterations for every limiter, both faces, f32 and f64, on six random media from
+//!   40×33×37 to 3×9×8, one and two threads, against the build before). The other colour's
+//!   φ and D then come from cache instead of memory: 5 values per voxel move for CDA
+//!   instead of 7, and 7 for FLD instead of 9 (`bytes_per_iteration` keeps counting 7 and
+//!   9, the work the bench's effective bandwidth is defined by). Measured with an ad-hoc
+//!   example alternating fused and split iterations on one solver (256³ vacuum cloud,
+//!   41 iterations each, three runs, minimum per run, ms): CDA f32 12.46–12.55 against
+//!   14.42–14.58, CDA f64 21.88–22.37 against 24.08–25.43, FLD-LP f64 45.1–45.7 against
+//!   48.5–49.2, FLD-LP f32 25.1–27.7 against 25.3–26.8 (no change: compute-bound, as its
+//!   sweep at 96³ in L3 runs no faster per voxel); at 128³ (within reach of the L3) CDA
+//!   f32 1.66 against 1.63, f64 2.95 against 3.26. Tasks of nz/(2 × threads) slabs; 1 or 4
+//!   per thread measured the same within the noise of this shared host (its iteration times
+//!   jump by up to 1.5× for minutes at a time, which is why minima are compared). Also
+//!   measured here and dropped: skipping the row loops' scalar remainders (wrong numbers,
+//!   timing only, alternating as above) changed nothing (FLD-LP f32 23.5 and 24.6 against
+//!   23.3 and 25.0 ms), although `perf` put a quarter of the cpu-clock samples of the LP pass
+//!   in scalar code: those samples wait on loads; and a build for this CPU's AVX-512
+//!   (`-C target-cpu=native`, the whole bench) took FLD-LP f32 from 23.65 to 22.18 ms and
+//!   CDA from 13.44 to 13.25 ms, too little for a second code path.
+//!   `cargo bench -p benches --bench diffusion` before and after (same host, same session;
+//!   the committed `results/bench/diffusion_cpu.csv` is the run after), 256³, ms (÷ the
+//!   triad of the same run): CDA f32 13.44 (0.77 of 45.6 GB/s) → 12.27 (0.85 of 44.9),
+//!   FLD-LP f32 23.65 (0.55 of 46.7) → 24.11 (0.53 of 47.3), CDA f64 25.51 (0.84 of 44.1)
+//!   → 21.96 (0.56 of 76.0), FLD-LP f64 45.97 (0.58 of 45.3) → 46.07 (0.35 of 75.2). The
+//!   host's triad rose from 45 to 75 GB/s between the f32 and the f64 half of the run
+//!   after, and the f64 ratios fell with it while the sweep times did not rise: issue 15's
+//!   ratios (FLD-LP ≥ 0.4, CDA ≥ 0.6) hold on this kind of host when its triad reads
+//!   ≈ 45 GB/s (both precisions before, f32 after) and not when it reads 75 GB/s.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.

@@ -491,3 +491,70 @@ fn results_are_bit_identical_for_one_and_two_threads() {
         check::<f64>(limiter);
     }
 }
+
+/// The fused colour passes ([`CpuFld::fused_with`], what every iteration runs on grids of
+/// four slabs or more) against the red pass then the black pass: φ, D, the black x-ends'
+/// kept D and Σ residual² bit for bit. The z-extents give tasks of two slabs and longer and
+/// a last task longer than the rest; one to three threads; both faces; CDA, LP, Larsen-2;
+/// f32 and f64.
+#[test]
+fn fused_passes_are_bit_identical_to_two_passes() {
+    fn check<T: Real>() {
+        for dims in [[9, 8, 4], [7, 6, 5], [12, 9, 13], [10, 7, 23]] {
+            let medium = scenes::random_heterogeneous::<T>(dims, 11, 0.2).unwrap();
+            for limiter in [
+                FluxLimiter::Cda,
+                FluxLimiter::LevermorePomraning,
+                FluxLimiter::Larsen(2.0),
+            ] {
+                for vacuum_face in [
+                    super::super::VacuumFace::Paper,
+                    super::super::VacuumFace::Marshak,
+                ] {
+                    let cfg = FldConfig {
+                        limiter,
+                        vacuum_face,
+                        omega: 1.5,
+                        d_relaxation: 0.7,
+                        ..FldConfig::default()
+                    };
+                    for threads in [1, 2, 3] {
+                        crate::test_util::with_threads(threads, || {
+                            let mut fused = CpuFld::new(&medium, &Boundary::Zero, &cfg).unwrap();
+                            assert!(fused.fused());
+                            // A few iterations first, so φ and D are far from their start
+                            // and the black x-ends are kept by the passes.
+                            for _ in 0..3 {
+                                fused.iterate();
+                            }
+                            let mut split = fused.clone();
+                            let a = fused.fused_passes();
+                            let b = split.pass(0) + split.pass(1);
+                            let what =
+                                format!("{dims:?} {limiter} {vacuum_face:?} {threads} threads");
+                            assert!(a > 0.0, "{what}: no residual");
+                            assert_eq!(a.to_bits(), b.to_bits(), "{what}: Σ residual²");
+                            let bits =
+                                |v: &[T]| v.iter().map(|x| x.f().to_bits()).collect::<Vec<_>>();
+                            for c in 0..2 {
+                                assert_eq!(
+                                    bits(&fused.phi[c]),
+                                    bits(&split.phi[c]),
+                                    "{what}: φ {c}"
+                                );
+                                assert_eq!(bits(&fused.d[c]), bits(&split.d[c]), "{what}: D {c}");
+                            }
+                            assert_eq!(
+                                bits(&fused.black_x_ends_prev),
+                                bits(&split.black_x_ends_prev),
+                                "{what}: kept x-end D"
+                            );
+                        });
+                    }
+                }
+            }
+        }
+    }
+    check::<f32>();
+    check::<f64>();
+}
