@@ -1162,6 +1162,7 @@ struct Rows<'a, T> {
 
 impl<'a, T> Rows<'a, T> {
     /// The rows around row j of the middle of three slabs (below, here, above; row length `h`).
+    #[inline(always)]
     fn new(slabs: &[&'a [T]; 3], j: usize, h: usize) -> Self {
         let g = j * h;
         Self {
@@ -1175,6 +1176,7 @@ impl<'a, T> Rows<'a, T> {
 
     /// The six neighbour runs of the `len` voxels starting at m0: x−, x+ (starting at `xl`,
     /// `xr` in the same row), y−, y+, z−, z+, each exactly `len` long.
+    #[inline(always)]
     fn cut(&self, xl: usize, xr: usize, m0: usize, len: usize) -> [&'a [T]; 6] {
         [
             &self.x[xl..xl + len],

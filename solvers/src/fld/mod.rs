@@ -333,6 +333,13 @@
 //!   after, and the f64 ratios fell with it while the sweep times did not rise: issue 15's
 //!   ratios (FLD-LP ≥ 0.4, CDA ≥ 0.6) hold on this kind of host when its triad reads
 //!   ≈ 45 GB/s (both precisions before, f32 after) and not when it reads 75 GB/s.
+//!   **Row views inlined (2026-12-06, same host).** `perf` of a multigrid solve listed
+//!   `Rows::new` (the other colour's five rows around a row, built three times per row) with
+//!   self time of its own: LLVM had not inlined it, nor `Rows::cut`. Both are now
+//!   `#[inline(always)]`; φ, D and residuals bit-identical (the hashes above). Minimum of 11
+//!   iterations at 256³, three runs of each build alternating, ms: CDA f32 11.9–12.5 →
+//!   11.2–11.5, CDA f64 21.6–22.4 → 21.1–21.5, FLD-LP f32 24.7–25.9 → 21.2–24.3, FLD-LP f64
+//!   44.1–44.9 → 42.0–43.7.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
