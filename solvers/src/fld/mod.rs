@@ -340,6 +340,14 @@
 //!   iterations at 256³, three runs of each build alternating, ms: CDA f32 11.9–12.5 →
 //!   11.2–11.5, CDA f64 21.6–22.4 → 21.1–21.5, FLD-LP f32 24.7–25.9 → 21.2–24.3, FLD-LP f64
 //!   44.1–44.9 → 42.0–43.7.
+//!   `cargo bench -p benches --bench diffusion` with both changes (the committed
+//!   `results/bench/diffusion_cpu.csv`; this time the triad read 42–46 GB/s throughout),
+//!   256³: CDA f32 11.68 ms (0.90 of a 44.8 GB/s triad), FLD-LP f32 22.20 ms (0.64 of 42.5),
+//!   CDA f64 21.51 ms (0.96 of 45.7), FLD-LP f64 43.35 ms (0.63 of 44.4). Their effective
+//!   bandwidths (40.2, 27.2, 43.7, 27.9 GB/s) keep issue 15's ratios (CDA ≥ 0.6, FLD-LP ≥
+//!   0.4) for any triad up to 67 GB/s (CDA f32), 68 (FLD-LP f32), 73 (CDA f64) and 70
+//!   (FLD-LP f64); this kind of host has read 42–76 GB/s, so at the top of that range
+//!   they do not hold.
 //! * **Extent L** of σ_ε = 10⁻³/L is the grid's longest edge.
 //! * **No emission.** If j̄ = 0 the floors and the normalisation use j_ref = max|φ_boundary|/Δl
 //!   instead; with a zero boundary as well the solution is φ = 0 and no iteration runs.
