@@ -301,6 +301,23 @@
 //!   CDA even for free transfers (FLD-LP: 472–974 sweeps against 52.3 work units, 9–19×),
 //!   and a work unit of multigrid still costs 2.6–3.6 (CDA) and 2.6–3.0 (FLD-LP) SOR sweeps
 //!   of wall time (residuals, transfers, packing, the Krylov history).
+//! * **127³ after the fused sweeps, and where a CDA solve's time goes (2026-12-06, Zen 5
+//!   host).** The sweeps now run both colours in one fused pass (`fld` module docs, "Fused
+//!   colour passes"); SOR and the smoother gain alike. `point_source --n 127 --boundary zero
+//!   --tolerance 1e-6 --solver sor,multigrid --limiter cda,lp`, every Fig 5 albedo, one run,
+//!   SOR / multigrid seconds to the tolerance: CDA 4.1–4.8× (SOR 0.78–0.92 s for 274–284
+//!   sweeps, multigrid 0.16–0.21 s), FLD-LP 3.4–6.9× (SOR 3.0–5.6 s for 472–974 sweeps,
+//!   multigrid 0.80–0.89 s). An instrumented build (timers around each step of the finest
+//!   level, not kept; CDA, α = 0.5, 5 cycles, 0.24 s) put: fine smoothing 62 ms (26 %),
+//!   the coarser levels 48 ms (20 %), the two fine residuals 44 ms (18 %; the in-cycle one
+//!   costs twice the end-of-cycle one because its vectors are still first touched while the
+//!   Krylov history fills), the Krylov combination, Gram update and re-packing 28 ms (12 %),
+//!   restrictions, prolongation and coarse packing 32 ms (13 %), unpacking and packing φ 19
+//!   ms (8 %), error estimate and the residual's sum 9.5 ms (4 %). Four cycles reach the
+//!   tolerance: their fine smoothing alone is ≈ 50 ms (15.8× against SOR's 0.78 s), and
+//!   with the coarser levels as they are ≈ 88 ms (8.9×), so at 127³ even free transfers,
+//!   residuals and Krylov steps would leave CDA below 10× unless the coarse levels got
+//!   cheaper too.
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; at n = 127 with V cycles, 84 of
 //!   108 were Picard cycles after the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
