@@ -318,6 +318,18 @@
 //!   with the coarser levels as they are ≈ 88 ms (8.9×), so at 127³ even free transfers,
 //!   residuals and Krylov steps would leave CDA below 10× unless the coarse levels got
 //!   cheaper too.
+//!   **255³ after the fused sweeps** (same command with `--n 255`, one run; CDA at every
+//!   albedo, FLD-LP at α = 0.1 and 0.7, the two lowest ratios of the run before): CDA SOR
+//!   12.2–15.4 s for 543–566 sweeps (16.2–17.7 s before) against multigrid 1.36–1.74 s to
+//!   the tolerance (1.43–1.51 s before): **8.1–11.3×** (was 11.1–12.4×), 6.5–9.0× by the
+//!   full stop; FLD-LP SOR 104.5 and 97.8 s (2019 and 1961 sweeps) against 6.76 and 6.82 s:
+//!   15.4× and 14.3× (was 14.1× and 13.6×). The faster sweep is all of SOR's time but only
+//!   a quarter of a CDA cycle's, so the CDA ratio fell below 10× at four of six albedos.
+//!   Of what else a 255³ CDA solve spends, first touch is large: 437 000 page faults during
+//!   the solve (the Krylov history's 8 fine vectors and the pooled cycle vectors, 1.7 GB;
+//!   counted from `/proc/self/stat` in an ad-hoc driver), and the process spent 1.7 of its
+//!   4.8 CPU seconds in the kernel. Touching them in the setup instead would only move
+//!   that time out of the solve's clock, so it was not done.
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; at n = 127 with V cycles, 84 of
 //!   108 were Picard cycles after the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
