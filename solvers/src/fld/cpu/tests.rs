@@ -495,7 +495,7 @@ fn results_are_bit_identical_for_one_and_two_threads() {
 /// The fused colour passes ([`CpuFld::fused_with`], what every iteration runs on grids of
 /// four slabs or more) against the red pass then the black pass: φ, D, the black x-ends'
 /// kept D and Σ residual² bit for bit. The z-extents give tasks of two slabs and longer and
-/// a last task longer than the rest; one to three threads; both faces; CDA, LP, Larsen-2;
+/// a last task longer than the rest; 1, 2, 3 and 8 threads; both faces; CDA, LP, Larsen-2;
 /// f32 and f64.
 #[test]
 fn fused_passes_are_bit_identical_to_two_passes() {
@@ -518,7 +518,7 @@ fn fused_passes_are_bit_identical_to_two_passes() {
                         d_relaxation: 0.7,
                         ..FldConfig::default()
                     };
-                    for threads in [1, 2, 3] {
+                    for threads in [1, 2, 3, 8] {
                         crate::test_util::with_threads(threads, || {
                             let mut fused = CpuFld::new(&medium, &Boundary::Zero, &cfg).unwrap();
                             assert!(fused.fused());
