@@ -726,17 +726,13 @@ impl<T: Real> CpuFld<T> {
                         if k == 0 || k + 1 == nz {
                             continue;
                         }
-                        let mut io = SlabIo {
-                            c,
-                            k,
-                            phi: &mut phi_group[kk * slab..(kk + 1) * slab],
-                            d: &mut d_group[kk * slab..(kk + 1) * slab],
-                            prev: &mut prev_group[kk * 2 * ny..(kk + 1) * 2 * ny],
-                            own: own.slab(k, slab),
-                            phi_o: around(phi_o, k, slab),
-                            d_o: around(d_o, k, slab),
-                            vac_o: around(vac_o, k, slab),
-                        };
+                        let other = [
+                            around(phi_o, k, slab),
+                            around(d_o, k, slab),
+                            around(vac_o, k, slab),
+                        ];
+                        let mine = [&mut *phi_group, &mut *d_group, &mut *prev_group];
+                        let mut io = SlabIo::cut(c, k, t * group, [slab, ny], mine, own, other);
                         sweep.rows(&mut io, j0..(j0 + ROW_BLOCK).min(ny - 1), acc, &mut scratch);
                     }
                 }
@@ -831,46 +827,26 @@ impl<T: Real> CpuFld<T> {
                     let (mut red, mut black) = (vec![0.0; b - a], vec![0.0; b - a]);
                     for k in a..b {
                         if k > 0 && k + 1 < nz {
-                            let mut io = SlabIo {
-                                c: 0,
-                                k,
-                                phi: &mut rphi[(k - a) * slab..(k - a + 1) * slab],
-                                d: &mut rd[(k - a) * slab..(k - a + 1) * slab],
-                                prev: &mut [],
-                                own: own[0].slab(k, slab),
-                                phi_o: around_in(
-                                    [(&*jp[t], j0), (*iphi, i0), (&*jp[t + 1], j1)],
-                                    k,
-                                    slab,
-                                ),
-                                d_o: around_in(
-                                    [(&*jd[t], j0), (*id, i0), (&*jd[t + 1], j1)],
-                                    k,
-                                    slab,
-                                ),
-                                vac_o: around(vac[1], k, slab),
-                            };
-                            let mut acc = T::zero();
-                            sweep.rows(&mut io, 1..ny - 1, &mut acc, &mut scratch);
-                            red[k - a] = acc.f();
+                            let other = [
+                                around_in([(&*jp[t], j0), (*iphi, i0), (&*jp[t + 1], j1)], k, slab),
+                                around_in([(&*jd[t], j0), (*id, i0), (&*jd[t + 1], j1)], k, slab),
+                                around(vac[1], k, slab),
+                            ];
+                            let mine = [&mut *rphi, &mut *rd, &mut []];
+                            let io = SlabIo::cut(0, k, a, [slab, ny], mine, own[0], other);
+                            red[k - a] = sweep.slab(io, &mut scratch);
                         }
                         // Black slab z = k − 1 if it is in I_t: its red neighbours are done.
                         if k > i0 {
                             let z = k - 1;
-                            let mut io = SlabIo {
-                                c: 1,
-                                k: z,
-                                phi: &mut iphi[(z - i0) * slab..(z - i0 + 1) * slab],
-                                d: &mut id[(z - i0) * slab..(z - i0 + 1) * slab],
-                                prev: &mut iprev[(z - i0) * 2 * ny..(z - i0 + 1) * 2 * ny],
-                                own: own[1].slab(z, slab),
-                                phi_o: around_in([(&*rphi, a); 3], z, slab),
-                                d_o: around_in([(&*rd, a); 3], z, slab),
-                                vac_o: around(vac[0], z, slab),
-                            };
-                            let mut acc = T::zero();
-                            sweep.rows(&mut io, 1..ny - 1, &mut acc, &mut scratch);
-                            black[z - a] = acc.f();
+                            let other = [
+                                around_in([(&*rphi, a); 3], z, slab),
+                                around_in([(&*rd, a); 3], z, slab),
+                                around(vac[0], z, slab),
+                            ];
+                            let mine = [&mut **iphi, &mut **id, &mut **iprev];
+                            let io = SlabIo::cut(1, z, i0, [slab, ny], mine, own[1], other);
+                            black[z - a] = sweep.slab(io, &mut scratch);
                         }
                     }
                     (red, black)
@@ -899,20 +875,14 @@ impl<T: Real> CpuFld<T> {
                 (lo..lo + n)
                     .filter(|&z| z > 0 && z + 1 < nz)
                     .map(|z| {
-                        let mut io = SlabIo {
-                            c: 1,
-                            k: z,
-                            phi: &mut jp[(z - lo) * slab..(z - lo + 1) * slab],
-                            d: &mut jdd[(z - lo) * slab..(z - lo + 1) * slab],
-                            prev: &mut jprev[(z - lo) * 2 * ny..(z - lo + 1) * 2 * ny],
-                            own: own[1].slab(z, slab),
-                            phi_o: around(rphi, z, slab),
-                            d_o: around(rd, z, slab),
-                            vac_o: around(vac[0], z, slab),
-                        };
-                        let mut acc = T::zero();
-                        sweep.rows(&mut io, 1..ny - 1, &mut acc, &mut scratch);
-                        (z, acc.f())
+                        let other = [
+                            around(rphi, z, slab),
+                            around(rd, z, slab),
+                            around(vac[0], z, slab),
+                        ];
+                        let mine = [&mut **jp, &mut **jdd, &mut **jprev];
+                        let io = SlabIo::cut(1, z, lo, [slab, ny], mine, own[1], other);
+                        (z, sweep.slab(io, &mut scratch))
                     })
                     .collect()
             })
@@ -951,6 +921,14 @@ struct Sweep<'l, T, L, const FLD: bool, const M: bool> {
 }
 
 impl<T: Real, L: Fn(T) -> (T, T), const FLD: bool, const M: bool> Sweep<'_, T, L, FLD, M> {
+    /// Updates every interior row of one slab; returns its Σ residual² (summed in row order).
+    #[inline(always)]
+    fn slab(&self, mut io: SlabIo<'_, T>, scratch: &mut [T]) -> f64 {
+        let mut acc = T::zero();
+        self.rows(&mut io, 1..self.n[1] - 1, &mut acc, scratch);
+        acc.f()
+    }
+
     /// Updates the interior rows `rows` of one slab, in ascending j, adding each row's
     /// Σ residual² to `acc` in that order.
     #[inline(always)]
@@ -1064,6 +1042,40 @@ struct SlabIo<'a, T> {
     phi_o: [&'a [T]; 3],
     d_o: [&'a [T]; 3],
     vac_o: [&'a [T]; 3],
+}
+
+impl<'a, T> SlabIo<'a, T> {
+    /// Slab z of colour c: its own φ, D and kept x-end D cut from pieces that start at slab
+    /// `first` (`[slab, ny]`: values per slab, rows per slab; an empty x-end piece stays
+    /// empty), its own read-only fields, and the other colour's φ, D and vacuum flags
+    /// around it.
+    fn cut(
+        c: usize,
+        z: usize,
+        first: usize,
+        [slab, ny]: [usize; 2],
+        [phi, d, prev]: [&'a mut [T]; 3],
+        own: ColourFields<'a, T>,
+        [phi_o, d_o, vac_o]: [[&'a [T]; 3]; 3],
+    ) -> Self {
+        let at = z - first;
+        let prev = if prev.is_empty() {
+            prev
+        } else {
+            &mut prev[at * 2 * ny..(at + 1) * 2 * ny]
+        };
+        Self {
+            c,
+            k: z,
+            phi: &mut phi[at * slab..(at + 1) * slab],
+            d: &mut d[at * slab..(at + 1) * slab],
+            prev,
+            own: own.slab(z, slab),
+            phi_o,
+            d_o,
+            vac_o,
+        }
+    }
 }
 
 /// Slabs k − 1, k, k + 1 of `f`.
