@@ -304,7 +304,7 @@
 //!   parallel phase. A black voxel reads only red neighbours and a red one only black ones,
 //!   so every voxel sees the same values as in the two passes: φ, D, the kept x-end D and
 //!   the residual sums are bit-identical (`fused_passes_are_bit_identical_to_two_passes`,
-//!   one to three threads, both faces; and the hash of φ, D and the residual history after
+//!   1, 2, 3 and 8 threads, both faces; and the hash of φ, D and the residual history after
 //!   30 iterations for every limiter, both faces, f32 and f64, on six random media from
 //!   40×33×37 to 3×9×8, one and two threads, against the build before). The other colour's
 //!   φ and D then come from cache instead of memory: 5 values per voxel move for CDA
