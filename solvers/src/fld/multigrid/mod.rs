@@ -324,7 +324,9 @@
 //!   the tolerance (1.43–1.51 s before): **8.1–11.3×** (was 11.1–12.4×), 6.5–9.0× by the
 //!   full stop; FLD-LP SOR 104.5 and 97.8 s (2019 and 1961 sweeps) against 6.76 and 6.82 s:
 //!   15.4× and 14.3× (was 14.1× and 13.6×). The faster sweep is all of SOR's time but only
-//!   a quarter of a CDA cycle's, so the CDA ratio fell below 10× at four of six albedos.
+//!   a quarter of a CDA cycle's, so the CDA ratio fell below 10× at four of six albedos. A
+//!   second CDA run right after (quieter: SOR 12.1–13.5 s, multigrid 1.25–1.35 s) read
+//!   9.7–10.5×: CDA at 255³ now sits at the 10× line.
 //!   Of what else a 255³ CDA solve spends, first touch is large: 437 000 page faults during
 //!   the solve (the Krylov history's 8 fine vectors and the pooled cycle vectors, 1.7 GB;
 //!   counted from `/proc/self/stat` in an ad-hoc driver), and the process spent 1.7 of its
