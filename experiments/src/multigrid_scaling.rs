@@ -138,7 +138,7 @@ struct HistoryRow {
 }
 
 /// The problems `--problems` knows.
-const PROBLEMS: &str = "point_source, cloud, ball_source, cloud_thin";
+const PROBLEMS: [&str; 4] = ["point_source", "cloud", "ball_source", "cloud_thin"];
 
 /// Radius of `ball_source`'s source (the unit cube's; τ = 0.4 at σt = 4): 3 voxels at n = 31.
 const BALL_RADIUS: f64 = 0.1;
@@ -156,7 +156,10 @@ fn medium(problem: &str, n: usize, albedo: f64, seed: u64) -> Result<Medium<f64>
             .context("building the ball source"),
         "cloud_thin" => scenes::cloud_in_thin_medium::<f64>(n, seed, THIN_SIGMA_T)
             .context("building the cloud in a thin medium"),
-        other => bail!("--problems: unknown problem {other:?} ({PROBLEMS})"),
+        other => bail!(
+            "--problems: unknown problem {other:?} ({})",
+            PROBLEMS.join(", ")
+        ),
     }
 }
 
@@ -185,8 +188,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
         bail!("--albedo: {} is outside [0, 1]", args.albedo);
     }
     for p in &args.problems {
-        if !PROBLEMS.split(", ").any(|q| q == p) {
-            bail!("--problems: unknown problem {p:?} ({PROBLEMS})");
+        if !PROBLEMS.contains(&p.as_str()) {
+            bail!(
+                "--problems: unknown problem {p:?} ({})",
+                PROBLEMS.join(", ")
+            );
         }
     }
     for &n in &ns {

@@ -694,10 +694,8 @@ impl<T: Real> CpuFld<T> {
         c: usize,
         limiter: L,
     ) -> f64 {
-        let [_, ny, nz] = self.grid.n;
-        let h = self.h;
-        let slab = ny * h;
         let sweep = self.sweep::<FLD, M, L>(&limiter);
+        let ([_, ny, nz], h, slab) = (sweep.n, sweep.h, sweep.slab_len());
         let [phi0, phi1] = &mut self.phi;
         let [d0, d1] = &mut self.d;
         let (phi_c, phi_o, d_c, d_o) = if c == 0 {
@@ -782,10 +780,8 @@ impl<T: Real> CpuFld<T> {
         &mut self,
         limiter: L,
     ) -> f64 {
-        let [_, ny, nz] = self.grid.n;
-        let h = self.h;
-        let slab = ny * h;
         let sweep = self.sweep::<FLD, M, L>(&limiter);
+        let ([_, ny, nz], h, slab) = (sweep.n, sweep.h, sweep.slab_len());
         // Task starts a_0 = 0 < a_1 < … < a_T = nz, each task at least two slabs.
         let size = (nz / (FUSE_TASKS_PER_THREAD * rayon::current_num_threads())).max(2);
         let tasks = (nz / size).max(1);
@@ -805,8 +801,8 @@ impl<T: Real> CpuFld<T> {
         let own =
             [0, 1].map(|c| ColourFields::of(&self.sig, &self.absorb, &self.src, &self.vac, c));
         let vac = [&self.vac[0][..], &self.vac[1][..]];
-        let (joints_phi, mut inner_phi) = evens_odds(split_slabs(phi1, slab, &cuts));
-        let (joints_d, mut inner_d) = evens_odds(split_slabs(d1, slab, &cuts));
+        let (mut joints_phi, mut inner_phi) = evens_odds(split_slabs(phi1, slab, &cuts));
+        let (mut joints_d, mut inner_d) = evens_odds(split_slabs(d1, slab, &cuts));
         let (mut joints_prev, mut inner_prev) =
             evens_odds(split_slabs(&mut self.black_x_ends_prev, 2 * ny, &cuts));
         let mut red_sums = vec![0.0; nz];
@@ -861,11 +857,9 @@ impl<T: Real> CpuFld<T> {
         }
         // Phase 2: the black slabs of the joints between tasks (J_1 … J_{T−1}).
         let (rphi, rd) = (&phi0[..], &d0[..]);
-        let mut jphi = joints_phi;
-        let mut jd = joints_d;
-        let joint_sums: Vec<Vec<(usize, f64)>> = jphi
+        let joint_sums: Vec<Vec<(usize, f64)>> = joints_phi
             .par_iter_mut()
-            .zip(jd.par_iter_mut())
+            .zip(joints_d.par_iter_mut())
             .zip(joints_prev.par_iter_mut())
             .enumerate()
             .map(|(t, ((jp, jdd), jprev))| {
@@ -921,6 +915,11 @@ struct Sweep<'l, T, L, const FLD: bool, const M: bool> {
 }
 
 impl<T: Real, L: Fn(T) -> (T, T), const FLD: bool, const M: bool> Sweep<'_, T, L, FLD, M> {
+    /// Values per packed slab of one colour.
+    fn slab_len(&self) -> usize {
+        self.n[1] * self.h
+    }
+
     /// Updates every interior row of one slab; returns its Σ residual² (summed in row order).
     #[inline(always)]
     fn slab(&self, mut io: SlabIo<'_, T>, scratch: &mut [T]) -> f64 {
@@ -1080,7 +1079,7 @@ impl<'a, T> SlabIo<'a, T> {
 
 /// Slabs k − 1, k, k + 1 of `f`.
 fn around<T>(f: &[T], k: usize, slab: usize) -> [&[T]; 3] {
-    [k - 1, k, k + 1].map(|z| &f[z * slab..(z + 1) * slab])
+    around_in([(f, 0); 3], k, slab)
 }
 
 /// Slabs k − 1, k, k + 1 from pieces (values, index of their first slab) that together

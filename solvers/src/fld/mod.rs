@@ -319,9 +319,10 @@
 //!   per thread measured the same within the noise of this shared host (its iteration times
 //!   jump by up to 1.5× for minutes at a time, which is why minima are compared). Also
 //!   measured here and dropped: skipping the row loops' scalar remainders (wrong numbers,
-//!   timing only, alternating as above) changed nothing (FLD-LP f32 23.5 and 24.6 against
-//!   23.3 and 25.0 ms), although `perf` put a quarter of the cpu-clock samples of the LP pass
-//!   in scalar code: those samples wait on loads; and a build for this CPU's AVX-512
+//!   timing only, alternating as above) changed nothing (FLD-LP f32 minima of two runs 23.5
+//!   and 24.6 ms with the remainders, 23.3 and 25.0 ms without), although `perf` put a
+//!   quarter of the cpu-clock samples of the LP pass in scalar code, so those samples most
+//!   likely wait on loads (cpu-clock sampling cannot tell); and a build for this CPU's AVX-512
 //!   (`-C target-cpu=native`, the whole bench) took FLD-LP f32 from 23.65 to 22.18 ms and
 //!   CDA from 13.44 to 13.25 ms, too little for a second code path.
 //!   `cargo bench -p benches --bench diffusion` before and after (same host, same session;
@@ -341,7 +342,7 @@
 //!   11.2–11.5, CDA f64 21.6–22.4 → 21.1–21.5, FLD-LP f32 24.7–25.9 → 21.2–24.3, FLD-LP f64
 //!   44.1–44.9 → 42.0–43.7.
 //!   `cargo bench -p benches --bench diffusion` with both changes (the committed
-//!   `results/bench/diffusion_cpu.csv`; this time the triad read 42–46 GB/s throughout),
+//!   `results/bench/diffusion_cpu.csv`; this time the triad read 42–46 GB/s at 256³),
 //!   256³: CDA f32 11.68 ms (0.90 of a 44.8 GB/s triad), FLD-LP f32 22.20 ms (0.64 of 42.5),
 //!   CDA f64 21.51 ms (0.96 of 45.7), FLD-LP f64 43.35 ms (0.63 of 44.4). Their effective
 //!   bandwidths (40.2, 27.2, 43.7, 27.9 GB/s) keep issue 15's ratios (CDA ≥ 0.6, FLD-LP ≥

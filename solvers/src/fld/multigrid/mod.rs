@@ -308,16 +308,16 @@
 //!   SOR / multigrid seconds to the tolerance: CDA 4.1–4.8× (SOR 0.78–0.92 s for 274–284
 //!   sweeps, multigrid 0.16–0.21 s), FLD-LP 3.4–6.9× (SOR 3.0–5.6 s for 472–974 sweeps,
 //!   multigrid 0.80–0.89 s). An instrumented build (timers around each step of the finest
-//!   level, not kept; CDA, α = 0.5, 5 cycles, 0.24 s) put: fine smoothing 62 ms (26 %),
-//!   the coarser levels 48 ms (20 %), the two fine residuals 44 ms (18 %; the in-cycle one
-//!   costs twice the end-of-cycle one because its vectors are still first touched while the
-//!   Krylov history fills), the Krylov combination, Gram update and re-packing 28 ms (12 %),
-//!   restrictions, prolongation and coarse packing 32 ms (13 %), unpacking and packing φ 19
-//!   ms (8 %), error estimate and the residual's sum 9.5 ms (4 %). Four cycles reach the
-//!   tolerance: their fine smoothing alone is ≈ 50 ms (15.8× against SOR's 0.78 s), and
-//!   with the coarser levels as they are ≈ 88 ms (8.9×), so at 127³ even free transfers,
-//!   residuals and Krylov steps would leave CDA below 10× unless the coarse levels got
-//!   cheaper too.
+//!   level, not kept; CDA, α = 0.5, 5 cycles, a 0.264 s solve of which the timed steps were
+//!   242 ms) put: fine smoothing 62 ms (23 % of the solve), the coarser levels 48 ms (18 %),
+//!   the two fine residuals 44 ms (17 %; the in-cycle one costs twice the end-of-cycle one,
+//!   its vectors still being first touched while the Krylov history fills), restrictions,
+//!   prolongation and coarse packing 32 ms (12 %), the Krylov combination, Gram update and
+//!   re-packing 28 ms (11 %), unpacking and packing φ 19 ms (7 %), error estimate and the
+//!   residual's sum 9.5 ms (4 %). Four cycles reach the tolerance: their fine smoothing
+//!   alone is ≈ 50 ms (15.8× against SOR's 0.78 s), and with the coarser levels as they are
+//!   ≈ 88 ms (8.9×), so at 127³ even free transfers, residuals and Krylov steps would leave
+//!   CDA below 10× unless the coarse levels got cheaper too.
 //!   **255³ after the fused sweeps** (same command with `--n 255`, one run; CDA at every
 //!   albedo, FLD-LP at α = 0.1 and 0.7, the two lowest ratios of the run before): CDA SOR
 //!   12.2–15.4 s for 543–566 sweeps (16.2–17.7 s before) against multigrid 1.36–1.74 s to
@@ -328,9 +328,10 @@
 //!   second CDA run right after (quieter: SOR 12.1–13.5 s, multigrid 1.25–1.35 s) read
 //!   9.7–10.5×: CDA at 255³ now sits at the 10× line.
 //!   Of what else a 255³ CDA solve spends, first touch is large: 437 000 page faults during
-//!   the solve (the Krylov history's 8 fine vectors and the pooled cycle vectors, 1.7 GB;
-//!   counted from `/proc/self/stat` in an ad-hoc driver), and the process spent 1.7 of its
-//!   4.8 CPU seconds in the kernel. Touching them in the setup instead would only move
+//!   the solve (1.8 GB; counted from `/proc/self/stat` in an ad-hoc driver), about what the
+//!   fine vectors the solve allocates add up to (the Krylov history's 8 alone are 1.06 GB),
+//!   and the whole process, setup and teardown included, spent 1.7 of its 4.8 CPU seconds
+//!   in the kernel (`perf stat`). Touching them in the setup instead would only move
 //!   that time out of the solve's clock, so it was not done.
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; at n = 127 with V cycles, 84 of
