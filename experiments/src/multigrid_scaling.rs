@@ -3,11 +3,14 @@
 //! the point source (zero boundary, albedo `--albedo`, τ = 4 across the grid) and on FLD
 //! Fig 4's cloud in vacuum ([`solvers::scenes::vacuum_cloud`]), CPU f64 and/or the GPU (f32,
 //! `--backend`; issue 15 acceptance 7 is this experiment on a real GPU at n = 255 and 511).
-//! Two controls say where growth with n comes from: `ball_source`
+//! Three controls say where growth with n comes from: `ball_source`
 //! ([`solvers::scenes::ball_source`]: the same power over a ball of radius 0.1, a source of
-//! fixed size where the point source's one voxel sharpens with n) and `cloud_thin`
+//! fixed size where the point source's one voxel sharpens with n), `cloud_thin`
 //! ([`solvers::scenes::cloud_in_thin_medium`]: the cloud's vacuum filled by σt = 0.5, where
-//! FLD's D in vacuum, φ/|∇φ|, makes its equation hyperbolic).
+//! FLD's D in vacuum, φ/|∇φ|, makes its equation hyperbolic) and `cloud_floor` (the cloud
+//! with the vacuum's σ floor σ_ε raised from 10⁻³ to 1, so D ≤ 1/3 there: FLD's D peaks at
+//! a critical point of φ in the vacuum, up to 1/(3σ_ε), and the grid samples it ever closer
+//! as n grows; `d_max` shows it).
 //!
 //! Multigrid is the FAS F(2,2) of [`solvers::fld::multigrid`] (on the CPU with the Krylov
 //! acceleration of depth `--krylov`, default 3); SOR is FLD Algorithm 1 with
@@ -19,10 +22,13 @@
 //!
 //! **Outputs** (`results/multigrid_scaling/`):
 //! * `steps.csv`: `problem,method,n,solver,steps,work_units,seconds,setup_seconds,stop,
-//!   final_residual,backend,seconds_to_tolerance` — steps are SOR iterations or multigrid
+//!   final_residual,backend,seconds_to_tolerance,d_max,d_median` — steps are SOR iterations or multigrid
 //!   cycles; work units count fine red-black sweeps (a smoothing sweep on level ℓ counts 8^−ℓ;
 //!   SOR: its iterations); `seconds_to_tolerance`: until R̄/j̄ first fell below the tolerance
-//!   (multigrid's stop also waits for its error estimate; empty on the GPU);
+//!   (multigrid's stop also waits for its error estimate; empty on the GPU); `d_max` and
+//!   `d_median`: the largest and the median D = F(R)/σ over the interior voxels at the
+//!   solution ([`solvers::fld::multigrid::diffusion_field`]), the coefficient contrast the
+//!   solvers face;
 //! * `history.csv`: `problem,method,n,solver,step,work_units,seconds,residual,backend` — the residual
 //!   after every step at the largest n that both solvers ran;
 //! * the report's speed-up table: SOR's seconds over multigrid's at every n both ran and
@@ -58,12 +64,13 @@ pub struct Args {
     #[arg(long, value_parser = crate::common::count_usize)]
     pub sor_max_n: Option<usize>,
     /// Problems: `point_source`, `cloud`, and their controls `ball_source` (the point
-    /// source's power over a ball of radius 0.1, a source that does not sharpen with n) and
-    /// `cloud_thin` (the cloud with its vacuum filled by σt = 0.5, albedo 0.9).
+    /// source's power over a ball of radius 0.1, a source that does not sharpen with n),
+    /// `cloud_thin` (the cloud with its vacuum filled by σt = 0.5, albedo 0.9) and
+    /// `cloud_floor` (the cloud with σ_ε = 1: D ≤ 1/3 in its vacuum).
     #[arg(
         long,
         value_delimiter = ',',
-        default_value = "point_source,cloud,ball_source,cloud_thin"
+        default_value = "point_source,cloud,ball_source,cloud_thin,cloud_floor"
     )]
     pub problems: Vec<String>,
     /// Limiters (`cda`, `lp`, … as in `point_source --limiters`).
@@ -122,6 +129,10 @@ pub struct StepRow {
     /// and on the GPU): SOR stops there, multigrid's stop also waits for its error estimate
     /// (`solvers::fld::FldTrace::seconds_to_tolerance`).
     pub seconds_to_tolerance: Option<f64>,
+    /// The largest D = F(R)/σ over the interior voxels at the solution.
+    pub d_max: f64,
+    /// The median D over the interior voxels at the solution.
+    pub d_median: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -138,7 +149,13 @@ struct HistoryRow {
 }
 
 /// The problems `--problems` knows.
-const PROBLEMS: [&str; 4] = ["point_source", "cloud", "ball_source", "cloud_thin"];
+const PROBLEMS: [&str; 5] = [
+    "point_source",
+    "cloud",
+    "ball_source",
+    "cloud_thin",
+    "cloud_floor",
+];
 
 /// Radius of `ball_source`'s source (the unit cube's; τ = 0.4 at σt = 4): 3 voxels at n = 31.
 const BALL_RADIUS: f64 = 0.1;
@@ -146,12 +163,45 @@ const BALL_RADIUS: f64 = 0.1;
 /// Extinction of `cloud_thin`'s medium around the cloud (τ = 0.5 across the unit cube).
 const THIN_SIGMA_T: f64 = 0.5;
 
+/// `cloud_floor`'s σ_ε (`FldConfig::sigma_eps`; the default is 10⁻³ on the unit cube): the
+/// vacuum's D is at most 1/(3σ_ε) = 1/3.
+const FLOOR_SIGMA_EPS: f64 = 1.0;
+
+/// The σ_ε a problem runs with (`None`: the solver's default).
+fn sigma_eps(problem: &str) -> Option<f64> {
+    (problem == "cloud_floor").then_some(FLOOR_SIGMA_EPS)
+}
+
+/// The largest and the median D over the interior voxels of `phi` (the Dirichlet layer
+/// excluded), as the multigrid's residual evaluates D.
+fn d_stats(m: &Medium<f64>, phi: &[f64], cfg: &FldConfig) -> Result<(f64, f64)> {
+    let d = fld::multigrid::diffusion_field(m, phi, cfg).context("D at the solution")?;
+    let g = m.grid;
+    let [nx, ny, nz] = g.n;
+    let mut inner = Vec::with_capacity(d.len());
+    for k in 1..nz.saturating_sub(1) {
+        for j in 1..ny.saturating_sub(1) {
+            let row = g.index(1, j, k);
+            inner.extend_from_slice(&d[row..row + nx.saturating_sub(2)]);
+        }
+    }
+    if inner.is_empty() {
+        return Ok((f64::NAN, f64::NAN));
+    }
+    let max = inner.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mid = inner.len() / 2;
+    let median = *inner.select_nth_unstable_by(mid, f64::total_cmp).1;
+    Ok((max, median))
+}
+
 fn medium(problem: &str, n: usize, albedo: f64, seed: u64) -> Result<Medium<f64>> {
     match problem {
         "point_source" => Ok(scenes::point_source::<f64>(n, 4.0, albedo)
             .context("building the point-source medium")?
             .0),
-        "cloud" => scenes::vacuum_cloud::<f64>(n, seed).context("building the cloud"),
+        "cloud" | "cloud_floor" => {
+            scenes::vacuum_cloud::<f64>(n, seed).context("building the cloud")
+        }
         "ball_source" => scenes::ball_source::<f64>(n, 4.0, albedo, BALL_RADIUS)
             .context("building the ball source"),
         "cloud_thin" => scenes::cloud_in_thin_medium::<f64>(n, seed, THIN_SIGMA_T)
@@ -254,6 +304,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
             limiter,
             omega: FldConfig::poisson_optimal_omega(n),
             max_iterations: cap,
+            sigma_eps: sigma_eps(&problem),
             ..FldConfig::default()
         }
         .with_tolerance(args.tolerance);
@@ -295,6 +346,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
             }
         }
         out.timing(format!("{problem}/{method}/n{n}/{name}/{bk}"), sol.seconds);
+        let (d_max, d_median) = d_stats(&m, &sol.phi, &cfg)?;
         rows.push(StepRow {
             problem: problem.clone(),
             method,
@@ -308,6 +360,8 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
             final_residual: sol.final_residual(),
             backend: bk,
             seconds_to_tolerance: sol.trace.seconds_to_tolerance,
+            d_max,
+            d_median,
         });
         bar.inc(1);
     }
@@ -474,6 +528,48 @@ fn speedups(t: &crate::report::Table, ns: &[String], col: &str) -> String {
     )
 }
 
+/// The report's D table: `d_max` and its ratio to `d_median` at the multigrid solutions
+/// (CPU where it ran, else the GPU) per problem and method; empty if no row has them.
+fn d_peaks(t: &crate::report::Table, ns: &[String]) -> String {
+    let mut rows = Vec::new();
+    for p in t.distinct("problem") {
+        for m in t.distinct("method") {
+            let at = |n: &str| {
+                t.rows()
+                    .filter(|r| r.get("problem") == p && r.get("method") == m)
+                    .filter(|r| r.get("solver") == "multigrid" && r.get("n") == n)
+                    .min_by_key(|r| r.get("backend") != "cpu")
+                    .map(|r| (r.num("d_max"), r.num("d_median")))
+                    .filter(|(x, y)| x.is_finite() && *y > 0.0)
+            };
+            let cells: Vec<Option<(f64, f64)>> = ns.iter().map(|n| at(n)).collect();
+            if cells.iter().any(Option::is_some) {
+                let mut row = vec![p.clone(), format!("`{m}`")];
+                row.extend(cells.iter().map(|c| {
+                    c.map_or("–".to_string(), |(x, y)| {
+                        format!("{x:.3} ({:.0}×)", x / y)
+                    })
+                }));
+                rows.push(row);
+            }
+        }
+    }
+    if rows.is_empty() {
+        return String::new();
+    }
+    let mut head: Vec<String> = ["problem", "method"].map(String::from).to_vec();
+    head.extend(ns.iter().map(|n| format!("n = {n}")));
+    let head: Vec<&str> = head.iter().map(String::as_str).collect();
+    format!(
+        "The largest D = F(R)/σ over the interior voxels at the multigrid solution (`d_max`, \
+         in units of the unit cube) and in brackets its ratio to the median D: in the cloud's \
+         vacuum FLD's D peaks at a critical point of φ (up to 1/(3σ_ε)), and the grid samples \
+         it ever closer as n grows; `cloud_floor` caps it at 1/3 (`solvers::fld::multigrid` \
+         module docs):\n\n{}\n",
+        table(&head, rows)
+    )
+}
+
 /// Issue 15's multigrid scaling in the registry.
 #[derive(Debug)]
 pub struct MultigridScaling;
@@ -491,6 +587,8 @@ const STEP_COLUMNS: &[&str] = &[
     "final_residual",
     "backend",
     "seconds_to_tolerance",
+    "d_max",
+    "d_median",
 ];
 
 impl Experiment for MultigridScaling {
@@ -597,6 +695,7 @@ impl Experiment for MultigridScaling {
         let head: Vec<&str> = head.iter().map(String::as_str).collect();
         out.push_str(&table(&head, rows));
         out.push('\n');
+        out.push_str(&d_peaks(&t, &ns));
         out.push_str(&speedups(&t, &ns, "seconds"));
         out.push_str(&speedups(&t, &ns, "seconds_to_tolerance"));
         out.push_str(&s.pngs([

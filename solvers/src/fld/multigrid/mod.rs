@@ -1251,6 +1251,44 @@ impl<T: Real> CpuMultigrid<T> {
     }
 }
 
+/// D = F(R)/σ (FLD Eqs 33–35) of `medium` at `phi` (physical units, natural layout), as
+/// the multigrid's residual evaluates it: σ floored at σ_ε as the solver floors it
+/// (`config.sigma_eps`), φ normalised by the solver's j̄, centred differences inside and
+/// one-sided ones on the Dirichlet layer. A diagnostic: in vacuum D → φ/|∇φ| and, at a
+/// critical point of φ, up to 1/(3σ_ε); where the grid samples such a point ever closer as n
+/// grows, D's peak sharpens and the cycles grow (module docs, "Why the cloud's FLD-LP cycles
+/// grow"). Errors: `phi` not as long as the grid, or a configuration the solver refuses.
+pub fn diffusion_field<T: Real>(
+    medium: &Medium<T>,
+    phi: &[f64],
+    config: &FldConfig,
+) -> Result<Vec<f64>, SolverError> {
+    let g = medium.grid;
+    if phi.len() != g.len() {
+        return Err(SolverError::FieldSize {
+            field: "phi",
+            expected: g.len(),
+            got: phi.len(),
+        });
+    }
+    let mut cfg = config.clone();
+    cfg.sigma_eps = Some(config.sigma_eps.unwrap_or(1e-3 / g.extent()));
+    let fld = CpuFld::new(medium, &Boundary::Zero, &cfg)?;
+    let scale = if fld.is_trivial() {
+        1.0
+    } else {
+        1.0 / fld.j_ref()
+    };
+    let [sig, _] = fld.mg_fields();
+    drop(fld);
+    let floor = cfg
+        .epsilon
+        .unwrap_or(T::DEFAULT_EPSILON)
+        .max(T::min_positive_value().f());
+    let normalised: Vec<f64> = phi.par_iter().map(|x| x * scale).collect();
+    Ok(fresh_d(&g, &normalised, &sig, &cfg, floor))
+}
+
 /// A zeroed vector of `len` values written by every thread of the pool. *Why*: a fresh
 /// fine-grid vector's pages are faulted in and cleared by the kernel on first touch, and a
 /// serial `resize` did that on one thread: the Krylov history alone takes 8 fine vectors as
