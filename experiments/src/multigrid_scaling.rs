@@ -15,7 +15,7 @@
 //! Multigrid is the FAS F(2,2) of [`solvers::fld::multigrid`] (on the CPU with the Krylov
 //! acceleration of depth `--krylov`, default 3); SOR is FLD Algorithm 1 with
 //! the Poisson-optimal ω(n) and runs only for n ≤ `--sor-max-n`, default 127 (its iterations
-//! grow like n^1–n^1.7: the cloud with FLD-LP took 4347 iterations, 74 s without setup, at 127³ in the committed run;
+//! grow like n^1–n^1.7: the cloud with FLD-LP took 4347 iterations, 30 s without setup, at 127³ in the committed run;
 //! SOR at 255³ is measured in the `multigrid` module docs instead). Grid-independent convergence means the cycle count stays flat in n (acceptance 2
 //! asks ≤ 25 % spread over n = 31…255). A solve that stalls or hits its cap is reported as
 //! such (`stop`), never as converged.
@@ -382,6 +382,19 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
         }
     }
     let both = keys.iter().any(|k| k.3 == "gpu") && keys.iter().any(|k| k.3 == "cpu");
+    // One colour per problem and method (SOR dashed, multigrid solid, in the same colour).
+    let mut pairs: Vec<(&str, &str)> = Vec::new();
+    for k in &keys {
+        if !pairs.contains(&(k.0.as_str(), k.1.as_str())) {
+            pairs.push((k.0.as_str(), k.1.as_str()));
+        }
+    }
+    let colour = |k: &Key| {
+        pairs
+            .iter()
+            .position(|p| *p == (k.0.as_str(), k.1.as_str()))
+            .unwrap_or_default()
+    };
     let label = |k: &Key| {
         let base = format!("{} {} {}", k.0, k.1, k.2);
         if both {
@@ -399,15 +412,14 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
     };
     let series = |f: &dyn Fn(&StepRow) -> f64| -> Vec<Series> {
         keys.iter()
-            .enumerate()
-            .map(|(c, k)| {
+            .map(|k| {
                 let pts = rows
                     .iter()
                     .filter(|r| r.problem == k.0 && r.method == k.1 && r.solver == k.2)
                     .filter(|r| r.backend == k.3 && r.stop == "converged")
                     .map(|r| (r.n as f64, f(r)))
                     .collect();
-                Series::new(label(k), pts, style(k.2), c)
+                Series::new(label(k), pts, style(k.2), colour(k))
             })
             .collect()
     };
@@ -428,8 +440,7 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
     )?;
     let hist = |f: &dyn Fn(&HistoryRow) -> f64| -> Vec<Series> {
         keys.iter()
-            .enumerate()
-            .map(|(c, k)| {
+            .map(|k| {
                 let pts = history
                     .iter()
                     .filter(|h| h.problem == k.0 && h.method == k.1 && h.solver == k.2)
@@ -437,7 +448,7 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
                     .map(|h| (f(h), h.residual.max(1e-300)))
                     .filter(|p| p.0.is_finite() && p.0 > 0.0)
                     .collect();
-                Series::new(label(k), pts, style(k.2), c)
+                Series::new(label(k), pts, style(k.2), colour(k))
             })
             .collect()
     };

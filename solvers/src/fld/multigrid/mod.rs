@@ -344,7 +344,8 @@
 //!   FLD-LP on white noise with 95 % vacuum still stalls in f32 (the GPU test). shell_core
 //!   (`convergence_check`) now converges (previous bullets). Operator-dependent
 //!   (Galerkin-type) coarse coefficients and a Newton-type treatment of the limiter's
-//!   nonlinearity remain the candidate fixes for the cloud's FLD-LP growth.
+//!   nonlinearity remain the candidate fixes for the cloud's FLD-LP growth, whose cause is
+//!   measured below (the peak of D at a critical point of φ in the vacuum).
 //!   **W-cycles do not help (2026-12-06, same 2-vCPU AMD EPYC, a W(2, 2) variant built and
 //!   measured, not kept; default Krylov depth 3, f64, R̄/j̄ < 10⁻⁶):** F → W cycles and
 //!   seconds: cloud CDA n = 31, 63, 127: 10, 12, 14 → 10, 12, 14 (1.00 → 1.09 s at 127);
@@ -372,6 +373,40 @@
 //!   FLD-LP takes 11, 13, 15, 19 (+73 %, against 14, 21, 54, 154 in vacuum) and CDA 8, 9, 9,
 //!   10 (+25 %, against 10, 12, 14, 16). So acceptance 2 holds for resolved sources without
 //!   vacuum, and not for FLD-LP where the medium is optically thin (+73 %) or vacuum.
+//! * **Why the cloud's FLD-LP cycles grow: the peak of D at a critical point of φ in the
+//!   vacuum (2026-12-07, 2-vCPU AMD EPYC Zen 5, 32 MiB L3; an ad-hoc driver over
+//!   [`CpuMultigrid`] and a diagnostic build, not kept; defaults, f64, R̄/j̄ < 10⁻⁶).** At
+//!   n = 127 the solve no longer stalls (54 cycles of the FAS alone; `Auto` does not switch),
+//!   but it converges at about 0.8 per cycle. From cycle 12 on, 60–86 % of Σr² sat in vacuum
+//!   voxels with no medium neighbour, the largest residuals at (52–55, 46–49, 104–105), just
+//!   outside the cloud's surface, where φ is flat (0.0688) and D is 5–8 against a median
+//!   vacuum D of 0.25. That is a critical point of φ (∇φ ≈ 0): there R = |∇φ|/(σ_ε φ) falls
+//!   and D = F(R)/σ_ε rises towards 1/(3σ_ε) = 333, and the nearer a voxel centre lies to the
+//!   point, the higher its D. The largest interior D at the converged φ
+//!   ([`diffusion_field`]) is 0.65, 1.76, 9.8 and 111 at n = 31, 63, 127, 255, always at the
+//!   same place ((0.42–0.43, 0.35–0.37, 0.82–0.84) of the unit cube), and the cycles are 14,
+//!   21, 54, 154. The lagged D of the smoother (and of Picard coarse levels) leaves out D's
+//!   dependence on φ, which near such a point is as large as the operator itself, and the
+//!   coarse levels do not see the peak: the discrete problems carry a coefficient contrast
+//!   that grows with n, as the point source's one-voxel j does.
+//!   **Controls.** Capping the peak by a larger σ_ε (`FldConfig::sigma_eps`; n = 127): σ_ε =
+//!   10⁻³ (default), 10⁻², 10⁻¹, 1 take 54, 46, 30, 12 cycles; with σ_ε = 1 (D ≤ 1/3,
+//!   `multigrid_scaling`'s `cloud_floor`) the cycles at n = 31, 63, 127, 255 are 9, 10, 12,
+//!   14 (+56 %), the growth that CDA on the cloud (+60 %) and FLD-LP on `cloud_thin` (+73 %)
+//!   show, which Galerkin coarse operators halve for CDA (next bullet). σ_ε is physics, not a
+//!   solver setting: against σ_ε = 10⁻³ at n = 127, φ changes in the cloud by 6.3·10⁻⁵
+//!   (σ_ε = 10⁻², max 0.5 %), 6.9·10⁻⁴ (10⁻¹, max 4.4 %) and 8.7·10⁻³ (1, max 24 %)
+//!   relative L2, and in the vacuum by 1.2·10⁻³, 1.3·10⁻² and 0.12; so the default stays.
+//!   **Tried, not kept.** A deeper Krylov history (depth 0, 3, 6, 12: 110, 54, 39, 34 cycles
+//!   at n = 127) helps but does not remove the growth. Local relaxation at the peak (Brandt's
+//!   remedy for singularities: after each cycle, 2–50 nonlinear Gauss–Seidel sweeps with D
+//!   recomputed, on the voxels whose r² exceeds 100× the mean and their neighbours, 700–1300
+//!   voxels): 54 → 47, 39, 32 cycles at n = 127 with 2, 10, 50 sweeps, 21 → 21 at n = 63,
+//!   but 154 → 239 at n = 255; with a lower threshold (10× and 3× the mean, 65 000–540 000
+//!   voxels) 59 and 63 at n = 127. What the peak needs is the limiter's Jacobian (a Newton
+//!   step) where D is sensitive, or coarse operators built from the fine D; neither is built.
+//!   `the_cloud_s_fld_cycles_follow_the_peak_of_d_in_its_vacuum` (`tests/fld_multigrid.rs`)
+//!   pins the peak's sharpening and the capped cloud's flat cycles at n = 31 and 63.
 //! * **Galerkin coarse operators ([`CoarseOp::Galerkin`], CDA only; 2026-12-06), first
 //!   measured outside the crate (`scripts/mg-coarse-operators.py`, numpy/scipy/pyamg).** The
 //!   script rebuilds the CDA operator of FLD Eq 32 on the vacuum cloud (σt = 20, albedo 0.9
