@@ -173,18 +173,18 @@ fn sigma_eps(problem: &str) -> Option<f64> {
 }
 
 /// The largest and the median D over the interior voxels of `phi` (the Dirichlet layer
-/// excluded), as the multigrid's residual evaluates D.
+/// excluded; NaN if there are none), as the multigrid's residual evaluates D.
 fn d_stats(m: &Medium<f64>, phi: &[f64], cfg: &FldConfig) -> Result<(f64, f64)> {
-    let d = fld::multigrid::diffusion_field(m, phi, cfg).context("D at the solution")?;
+    let d = fld::multigrid::diffusion_field(m, &Boundary::Zero, phi, cfg)
+        .context("D at the solution")?;
     let g = m.grid;
-    let [nx, ny, nz] = g.n;
-    let mut inner = Vec::with_capacity(d.len());
-    for k in 1..nz.saturating_sub(1) {
-        for j in 1..ny.saturating_sub(1) {
-            let row = g.index(1, j, k);
-            inner.extend_from_slice(&d[row..row + nx.saturating_sub(2)]);
-        }
-    }
+    let mut inner: Vec<f64> = (0..d.len())
+        .filter(|&p| {
+            let [i, j, k] = g.coords(p);
+            !g.is_boundary(i, j, k)
+        })
+        .map(|p| d[p])
+        .collect();
     if inner.is_empty() {
         return Ok((f64::NAN, f64::NAN));
     }
@@ -382,7 +382,7 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
         }
     }
     let both = keys.iter().any(|k| k.3 == "gpu") && keys.iter().any(|k| k.3 == "cpu");
-    // One colour per problem and method (SOR dashed, multigrid solid, in the same colour).
+    // One colour per problem and method (SOR dashed, multigrid solid).
     let mut pairs: Vec<(&str, &str)> = Vec::new();
     for k in &keys {
         if !pairs.contains(&(k.0.as_str(), k.1.as_str())) {
@@ -403,8 +403,11 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
             base
         }
     };
-    let style = |s: &str| {
-        if s == "sor" {
+    // With both backends the GPU's series are points, in their CPU twins' colours.
+    let style = |k: &Key| {
+        if both && k.3 == "gpu" {
+            Style::Points
+        } else if k.2 == "sor" {
             Style::Dashed
         } else {
             Style::Line
@@ -419,7 +422,7 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
                     .filter(|r| r.backend == k.3 && r.stop == "converged")
                     .map(|r| (r.n as f64, f(r)))
                     .collect();
-                Series::new(label(k), pts, style(k.2), colour(k))
+                Series::new(label(k), pts, style(k), colour(k))
             })
             .collect()
     };
@@ -448,7 +451,7 @@ fn plots(out: &Ctx, rows: &[StepRow], history: &[HistoryRow]) -> Result<()> {
                     .map(|h| (f(h), h.residual.max(1e-300)))
                     .filter(|p| p.0.is_finite() && p.0 > 0.0)
                     .collect();
-                Series::new(label(k), pts, style(k.2), colour(k))
+                Series::new(label(k), pts, style(k), colour(k))
             })
             .collect()
     };
@@ -550,16 +553,24 @@ fn d_peaks(t: &crate::report::Table, ns: &[String]) -> String {
                     .filter(|r| r.get("problem") == p && r.get("method") == m)
                     .filter(|r| r.get("solver") == "multigrid" && r.get("n") == n)
                     .min_by_key(|r| r.get("backend") != "cpu")
-                    .map(|r| (r.num("d_max"), r.num("d_median")))
-                    .filter(|(x, y)| x.is_finite() && *y > 0.0)
+                    .map(|r| (r.num("d_max"), r.num("d_median"), r.get("stop")))
+                    .filter(|(x, y, _)| x.is_finite() && *y > 0.0)
             };
-            let cells: Vec<Option<(f64, f64)>> = ns.iter().map(|n| at(n)).collect();
+            let cells: Vec<_> = ns.iter().map(|n| at(n)).collect();
             if cells.iter().any(Option::is_some) {
                 let mut row = vec![p.clone(), format!("`{m}`")];
-                row.extend(cells.iter().map(|c| {
-                    c.map_or("–".to_string(), |(x, y)| {
-                        format!("{x:.3} ({:.0}×)", x / y)
-                    })
+                row.extend(cells.iter().map(|c| match c {
+                    None => "–".to_string(),
+                    Some((x, y, stop)) => {
+                        let ratio = x / y;
+                        let digits = if ratio < 10.0 { 1 } else { 0 };
+                        let mark = if *stop == "converged" {
+                            String::new()
+                        } else {
+                            format!(" {stop}")
+                        };
+                        format!("{x:.3} ({ratio:.digits$}×){mark}")
+                    }
                 }));
                 rows.push(row);
             }
@@ -572,11 +583,10 @@ fn d_peaks(t: &crate::report::Table, ns: &[String]) -> String {
     head.extend(ns.iter().map(|n| format!("n = {n}")));
     let head: Vec<&str> = head.iter().map(String::as_str).collect();
     format!(
-        "The largest D = F(R)/σ over the interior voxels at the multigrid solution (`d_max`, \
-         in units of the unit cube) and in brackets its ratio to the median D: in the cloud's \
-         vacuum FLD's D peaks at a critical point of φ (up to 1/(3σ_ε)), and the grid samples \
-         it ever closer as n grows; `cloud_floor` caps it at 1/3 (`solvers::fld::multigrid` \
-         module docs):\n\n{}\n",
+        "The largest D = F(R)/σ over the interior voxels where multigrid stopped (`d_max`, \
+         in units of the unit cube; the stop where it did not converge) and in brackets its \
+         ratio to the median D (`solvers::fld::multigrid` module docs, \
+         \"Why the cloud's FLD-LP cycles grow\"):\n\n{}\n",
         table(&head, rows)
     )
 }

@@ -473,7 +473,7 @@ pub struct FldConfig {
     /// Upper bound on iterations (one iteration = red pass + black pass).
     pub max_iterations: usize,
     /// Extinction floor σ_ε (FLD Eq 33); `None` uses 10⁻³/L with L the grid extent. It
-    /// bounds FLD's vacuum D by 1/(3σ_ε), which it reaches at critical points of φ, and so
+    /// bounds FLD's vacuum D by 1/(3σ_ε), which it approaches at critical points of φ, and so
     /// sets how slowly multigrid converges on vacuum scenes; it changes φ as well (measured
     /// in the `multigrid` module docs, "Why the cloud's FLD-LP cycles grow").
     pub sigma_eps: Option<f64>,

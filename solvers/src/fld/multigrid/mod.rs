@@ -699,17 +699,10 @@ impl<T: Real> CpuMultigrid<T> {
                 8,
             ),
         )?;
-        let mut cfg = config.clone();
-        cfg.omega = 1.0;
-        cfg.sigma_eps = Some(config.sigma_eps.unwrap_or(1e-3 / medium.grid.extent()));
-        let fine = CpuFld::new(medium, boundary, &cfg)?;
+        let (mut cfg, fine, floor) = fine_level(medium, boundary, config)?;
         let j_ref = fine.j_ref();
         let trivial = fine.is_trivial();
         cfg.residual_margin = fine.residual_margin();
-        let floor = cfg
-            .epsilon
-            .unwrap_or(T::DEFAULT_EPSILON)
-            .max(T::min_positive_value().f());
         let tolerance = fine.tolerance();
         let mut levels = vec![Self::level(fine)];
         // Coarse media.
@@ -1286,15 +1279,35 @@ impl<T: Real> CpuMultigrid<T> {
     }
 }
 
-/// D = F(R)/σ (FLD Eqs 33–35) of `medium` at `phi` (physical units, natural layout), as
-/// the multigrid's residual evaluates it: σ floored at σ_ε as the solver floors it
-/// (`config.sigma_eps`), φ normalised by the solver's j̄, centred differences inside and
-/// one-sided ones on the Dirichlet layer. A diagnostic: in vacuum D → φ/|∇φ| and, at a
-/// critical point of φ, up to 1/(3σ_ε); where the grid samples such a point ever closer as n
-/// grows, D's peak sharpens and the cycles grow (module docs, "Why the cloud's FLD-LP cycles
-/// grow"). Errors: `phi` not as long as the grid, or a configuration the solver refuses.
+/// The finest level's settings (ω = 1: Gauss–Seidel smoothing; σ_ε made explicit, so the
+/// coarse levels keep the finest grid's), its smoother and the floor of R's numerator and
+/// denominator (ε of FLD Eq 35, at least the smallest positive `T`).
+fn fine_level<T: Real>(
+    medium: &Medium<T>,
+    boundary: &Boundary<T>,
+    config: &FldConfig,
+) -> Result<(FldConfig, CpuFld<T>, f64), SolverError> {
+    let mut cfg = config.clone();
+    cfg.omega = 1.0;
+    cfg.sigma_eps = Some(config.sigma_eps.unwrap_or(1e-3 / medium.grid.extent()));
+    let fine = CpuFld::new(medium, boundary, &cfg)?;
+    let floor = cfg
+        .epsilon
+        .unwrap_or(T::DEFAULT_EPSILON)
+        .max(T::min_positive_value().f());
+    Ok((cfg, fine, floor))
+}
+
+/// D = F(R)/σ (FLD Eqs 33–35) of `medium` under `boundary` at `phi` (physical units,
+/// natural layout), as the CPU multigrid's residual evaluates it in f64: σ floored at σ_ε as
+/// the solver floors it (`config.sigma_eps`), φ normalised by the solver's j̄, centred
+/// differences inside and one-sided ones on the Dirichlet layer. A diagnostic of the
+/// coefficient contrast a solve faces (module docs, "Why the cloud's FLD-LP cycles grow").
+/// Errors: `phi` not as long as the grid, or a medium, boundary or configuration the solver
+/// refuses.
 pub fn diffusion_field<T: Real>(
     medium: &Medium<T>,
+    boundary: &Boundary<T>,
     phi: &[f64],
     config: &FldConfig,
 ) -> Result<Vec<f64>, SolverError> {
@@ -1306,20 +1319,14 @@ pub fn diffusion_field<T: Real>(
             got: phi.len(),
         });
     }
-    let mut cfg = config.clone();
-    cfg.sigma_eps = Some(config.sigma_eps.unwrap_or(1e-3 / g.extent()));
-    let fld = CpuFld::new(medium, &Boundary::Zero, &cfg)?;
-    let scale = if fld.is_trivial() {
+    let (cfg, fine, floor) = fine_level(medium, boundary, config)?;
+    let scale = if fine.is_trivial() {
         1.0
     } else {
-        1.0 / fld.j_ref()
+        1.0 / fine.j_ref()
     };
-    let [sig, _] = fld.mg_fields();
-    drop(fld);
-    let floor = cfg
-        .epsilon
-        .unwrap_or(T::DEFAULT_EPSILON)
-        .max(T::min_positive_value().f());
+    let [sig, _] = fine.mg_fields();
+    drop(fine);
     let normalised: Vec<f64> = phi.par_iter().map(|x| x * scale).collect();
     Ok(fresh_d(&g, &normalised, &sig, &cfg, floor))
 }
