@@ -398,7 +398,9 @@
 //!   (σ_ε = 10⁻², max 0.5 %), 6.9·10⁻⁴ (10⁻¹, max 4.4 %) and 8.7·10⁻³ (1, max 24 %)
 //!   relative L2, and in the vacuum by 1.2·10⁻³, 1.3·10⁻² and 0.12; so the default stays.
 //!   **Tried, not kept.** A deeper Krylov history (depth 0, 3, 6, 12: 110, 54, 39, 34 cycles
-//!   at n = 127) helps but does not remove the growth. Local relaxation at the peak (Brandt's
+//!   at n = 127) helps but does not remove the growth; nor does the θ of the D update
+//!   ([`FldConfig::d_relaxation`] 0.3, 0.5, 0.7, 1: 92, 54, 55, 98 cycles at n = 127, so
+//!   the default 0.5 stays). Local relaxation at the peak (Brandt's
 //!   remedy for singularities: after each cycle, 2–50 nonlinear Gauss–Seidel sweeps with D
 //!   recomputed, on the voxels whose r² exceeds 100× the mean and their neighbours, 700–1300
 //!   voxels): 54 → 47, 39, 32 cycles at n = 127 with 2, 10, 50 sweeps, 21 → 21 at n = 63,
