@@ -397,6 +397,9 @@
 //!   solver setting: against σ_ε = 10⁻³ at n = 127, φ changes in the cloud by 6.3·10⁻⁵
 //!   (σ_ε = 10⁻², max 0.5 %), 6.9·10⁻⁴ (10⁻¹, max 4.4 %) and 8.7·10⁻³ (1, max 24 %)
 //!   relative L2, and in the vacuum by 1.2·10⁻³, 1.3·10⁻² and 0.12; so the default stays.
+//!   SOR slows with a smaller σ_ε too, as FLD Fig 4c shows (`convergence`'s `sigma_eps`
+//!   case: 552, 745, 775 iterations at σ_ε·L = 10⁻¹, 10⁻², 10⁻³ on the 51³ cloud in f32 to
+//!   10⁻⁴, then flat: 1.4× from 10⁻¹ to 10⁻³, where multigrid at n = 127 takes 1.8×).
 //!   **Tried, not kept.** A deeper Krylov history (depth 0, 3, 6, 12: 110, 54, 39, 34 cycles
 //!   at n = 127) helps but does not remove the growth; nor does the θ of the D update
 //!   ([`FldConfig::d_relaxation`] 0.3, 0.5, 0.7, 1: 92, 54, 55, 98 cycles at n = 127, so
