@@ -401,14 +401,20 @@
 //!   case: 552, 745, 775 iterations at σ_ε·L = 10⁻¹, 10⁻², 10⁻³ on the 51³ cloud in f32 to
 //!   10⁻⁴, then flat: 1.4× from 10⁻¹ to 10⁻³, where multigrid at n = 127 takes 1.8×).
 //!   **Tried, not kept.** A deeper Krylov history (depth 0, 3, 6, 12: 110, 54, 39, 34 cycles
-//!   at n = 127) helps but does not remove the growth; nor does the θ of the D update
-//!   ([`FldConfig::d_relaxation`] 0.3, 0.5, 0.7, 1: 92, 54, 55, 98 cycles at n = 127, so
-//!   the default 0.5 stays). Local relaxation at the peak (Brandt's
+//!   at n = 127; at n = 255 depth 6 and 12 take 106 and 85 cycles, 62 and 54 s, against 154
+//!   and 93 s at depth 3) helps but does not remove the growth, and it costs 2(k + 1) fine
+//!   vectors (3.5 GB at 255³ for depth 12) and time where the cycles are few (CDA on the
+//!   cloud at n = 127: 14 → 13 cycles, 0.59 → 0.74 s). So depth 3 stays the default, and
+//!   [`MgConfig::krylov`] (`multigrid_scaling --krylov`) is the lever for FLD in vacuum.
+//!   The θ of the D update is not ([`FldConfig::d_relaxation`] 0.3, 0.5, 0.7, 1: 92, 54, 55,
+//!   98 cycles at n = 127; the default 0.5 stays). Local relaxation at the peak (Brandt's
 //!   remedy for singularities: after each cycle, 2–50 nonlinear Gauss–Seidel sweeps with D
 //!   recomputed, on the voxels whose r² exceeds 100× the mean and their neighbours, 700–1300
 //!   voxels): 54 → 47, 39, 32 cycles at n = 127 with 2, 10, 50 sweeps, 21 → 21 at n = 63,
 //!   but 154 → 239 at n = 255; with a lower threshold (10× and 3× the mean, 65 000–540 000
-//!   voxels) 59 and 63 at n = 127. What the peak needs is the limiter's Jacobian (a Newton
+//!   voxels) 59 and 63 at n = 127; the same sweeps with D held at its value after the cycle
+//!   (linear Gauss–Seidel, 10 and 50 sweeps) 41 and 38 cycles at n = 127, and at n = 255
+//!   `Stalled` after 31. What the peak needs is the limiter's Jacobian (a Newton
 //!   step) where D is sensitive, or coarse operators built from the fine D; neither is built.
 //!   `the_cloud_s_fld_cycles_follow_the_peak_of_d_in_its_vacuum` (`tests/fld_multigrid.rs`)
 //!   pins the peak's sharpening and the capped cloud's flat cycles at n = 31 and 63.
