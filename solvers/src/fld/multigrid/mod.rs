@@ -377,8 +377,9 @@
 //!   vacuum (2026-12-07, 2-vCPU AMD EPYC Zen 5, 32 MiB L3; an ad-hoc driver over
 //!   [`CpuMultigrid`] and a diagnostic build, not kept; defaults, f64, R̄/j̄ < 10⁻⁶).** At
 //!   n = 127 the solve no longer stalls (54 cycles of the FAS alone; `Auto` does not switch),
-//!   but it converges at about 0.8 per cycle. From cycle 12 on, 60–86 % of Σr² sat in vacuum
-//!   voxels with no medium neighbour, the largest residuals at (52–55, 46–49, 104–105), just
+//!   but it converges at about 0.8 per cycle. From cycle 7 on, 94–99 % of Σr² sat in vacuum
+//!   voxels (56–86 % in those with no medium neighbour; sampled every sixth cycle), the
+//!   largest residuals at (52–55, 46–49, 104–105), just
 //!   outside the cloud's surface, where φ is flat (0.0688) and D is 5–8 against a median
 //!   vacuum D of 0.25. That is a critical point of φ (∇φ ≈ 0): there R = |∇φ|/(σ_ε φ) falls
 //!   and D = F(R)/σ_ε rises towards 1/(3σ_ε) = 333, and the nearer a voxel centre lies to the
