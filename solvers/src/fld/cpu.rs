@@ -265,6 +265,12 @@ impl<T: Real> CpuFld<T> {
         self.j_ref
     }
 
+    /// The unit of the φ the solve runs on: j̄, or 1 for the trivial problem (no source and
+    /// a zero boundary), so that φ in the caller's units is the solver's φ times this.
+    pub(super) fn phi_unit(&self) -> f64 {
+        if self.trivial { 1.0 } else { self.j_ref }
+    }
+
     /// The per-solve constants (shared with the GPU kernel's uniforms).
     pub(super) fn params(&self) -> Params<T> {
         self.params
@@ -466,7 +472,7 @@ impl<T: Real> CpuFld<T> {
 
     /// The current φ in natural layout (x fastest), in the caller's units.
     pub fn phi(&self) -> Vec<T> {
-        let scale = if self.trivial { 1.0 } else { self.j_ref };
+        let scale = self.phi_unit();
         self.unpack(&self.phi)
             .into_iter()
             .map(|x| T::c(x.f() * scale))
@@ -674,18 +680,34 @@ impl<T: Real> CpuFld<T> {
     /// One colour pass over all interior voxels of colour `c`; returns Σ residual² over the
     /// voxels counted in the RMS.
     fn pass(&mut self, c: usize) -> f64 {
+        self.run(Passes::One(c))
+    }
+
+    /// `what` with the face treatment and the limiter resolved to one instance.
+    fn run(&mut self, what: Passes) -> f64 {
         match self.config.vacuum_face {
-            super::VacuumFace::Paper => self.pass_face::<false>(c),
-            super::VacuumFace::Marshak => self.pass_face::<true>(c),
+            super::VacuumFace::Paper => self.run_face::<false>(what),
+            super::VacuumFace::Marshak => self.run_face::<true>(what),
         }
     }
 
-    fn pass_face<const M: bool>(&mut self, c: usize) -> f64 {
+    fn run_face<const M: bool>(&mut self, what: Passes) -> f64 {
         match self.config.limiter {
             // CDA's D is fixed at setup: the pass skips the Knudsen number and the limiter.
-            FluxLimiter::Cda => self.pass_with::<false, M, _>(c, |_| (T::zero(), T::one())),
+            FluxLimiter::Cda => self.run_with::<false, M, _>(what, |_| (T::zero(), T::one())),
             // One instance per limiter (Larsen-2 its own, branch-free; other n call `powf`).
-            lim => super::limiter::with_limiter!(lim, |f| self.pass_with::<true, M, _>(c, f)),
+            lim => super::limiter::with_limiter!(lim, |f| self.run_with::<true, M, _>(what, f)),
+        }
+    }
+
+    fn run_with<const FLD: bool, const M: bool, L: Fn(T) -> (T, T) + Sync>(
+        &mut self,
+        what: Passes,
+        limiter: L,
+    ) -> f64 {
+        match what {
+            Passes::One(c) => self.pass_with::<FLD, M, L>(c, limiter),
+            Passes::Fused => self.fused_with::<FLD, M, L>(limiter),
         }
     }
 
@@ -747,19 +769,9 @@ impl<T: Real> CpuFld<T> {
         self.grid.n[2] >= FUSE_MIN_SLABS
     }
 
-    /// [`CpuFld::fused_with`] with the face treatment and the limiter resolved.
+    /// Both colour passes fused ([`CpuFld::fused_with`]).
     fn fused_passes(&mut self) -> f64 {
-        match self.config.vacuum_face {
-            super::VacuumFace::Paper => self.fused_face::<false>(),
-            super::VacuumFace::Marshak => self.fused_face::<true>(),
-        }
-    }
-
-    fn fused_face<const M: bool>(&mut self) -> f64 {
-        match self.config.limiter {
-            FluxLimiter::Cda => self.fused_with::<false, M, _>(|_| (T::zero(), T::one())),
-            lim => super::limiter::with_limiter!(lim, |f| self.fused_with::<true, M, _>(f)),
-        }
+        self.run(Passes::Fused)
     }
 
     /// The red and the black pass of one iteration, fused slab by slab. φ, D, the black
@@ -901,6 +913,15 @@ impl<T: Real> CpuFld<T> {
             limiter,
         }
     }
+}
+
+/// What [`CpuFld::run`] sweeps: one colour pass, or both fused.
+#[derive(Clone, Copy)]
+enum Passes {
+    /// The pass over colour c (0 red, 1 black).
+    One(usize),
+    /// Red then black, fused slab by slab ([`CpuFld::fused_with`]).
+    Fused,
 }
 
 /// The constants of one colour pass (grid, packed row length, parameters, residual window,
