@@ -167,6 +167,14 @@ const THIN_SIGMA_T: f64 = 0.5;
 /// vacuum's D is at most 1/(3σ_ε) = 1/3.
 const FLOOR_SIGMA_EPS: f64 = 1.0;
 
+/// The error for a `--problems` entry that is not in [`PROBLEMS`].
+fn unknown_problem(p: &str) -> anyhow::Error {
+    anyhow::anyhow!(
+        "--problems: unknown problem {p:?} ({})",
+        PROBLEMS.join(", ")
+    )
+}
+
 /// The σ_ε a problem runs with (`None`: the solver's default).
 fn sigma_eps(problem: &str) -> Option<f64> {
     (problem == "cloud_floor").then_some(FLOOR_SIGMA_EPS)
@@ -206,10 +214,7 @@ fn medium(problem: &str, n: usize, albedo: f64, seed: u64) -> Result<Medium<f64>
             .context("building the ball source"),
         "cloud_thin" => scenes::cloud_in_thin_medium::<f64>(n, seed, THIN_SIGMA_T)
             .context("building the cloud in a thin medium"),
-        other => bail!(
-            "--problems: unknown problem {other:?} ({})",
-            PROBLEMS.join(", ")
-        ),
+        other => Err(unknown_problem(other)),
     }
 }
 
@@ -239,10 +244,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
     }
     for p in &args.problems {
         if !PROBLEMS.contains(&p.as_str()) {
-            bail!(
-                "--problems: unknown problem {p:?} ({})",
-                PROBLEMS.join(", ")
-            );
+            return Err(unknown_problem(p));
         }
     }
     for &n in &ns {
@@ -524,9 +526,6 @@ fn speedups(t: &crate::report::Table, ns: &[String], col: &str) -> String {
     if rows.is_empty() {
         return String::new();
     }
-    let mut head: Vec<String> = ["problem", "method", "backend"].map(String::from).to_vec();
-    head.extend(ns.iter().map(|n| format!("n = {n}")));
-    let head: Vec<&str> = head.iter().map(String::as_str).collect();
     let what = if col == "seconds" {
         "SOR's seconds to the tolerance over multigrid's, each solver stopping by its own rule \
          (multigrid's also waits for its error estimate)"
@@ -538,8 +537,20 @@ fn speedups(t: &crate::report::Table, ns: &[String], col: &str) -> String {
         "Multigrid's speed-up over SOR: {what}, both without setup, where both ran and \
          converged (issue 15 asks ≥ 10× at 127³ and 255³; SOR runs up to `sor_max_n` of \
          `meta.json`):\n\n{}\n",
-        table(&head, rows)
+        by_n(&["problem", "method", "backend"], ns, &[], rows)
     )
+}
+
+/// A report table whose columns are `lead`, one per grid size in `ns` ("n = …"), then `tail`.
+fn by_n(lead: &[&str], ns: &[String], tail: &[&str], rows: Vec<Vec<String>>) -> String {
+    let cols: Vec<String> = ns.iter().map(|n| format!("n = {n}")).collect();
+    let head: Vec<&str> = lead
+        .iter()
+        .copied()
+        .chain(cols.iter().map(String::as_str))
+        .chain(tail.iter().copied())
+        .collect();
+    table(&head, rows)
 }
 
 /// The report's D table: `d_max` and its ratio to `d_median` at the multigrid solutions
@@ -579,15 +590,12 @@ fn d_peaks(t: &crate::report::Table, ns: &[String]) -> String {
     if rows.is_empty() {
         return String::new();
     }
-    let mut head: Vec<String> = ["problem", "method"].map(String::from).to_vec();
-    head.extend(ns.iter().map(|n| format!("n = {n}")));
-    let head: Vec<&str> = head.iter().map(String::as_str).collect();
     format!(
         "The largest D = F(R)/σ over the interior voxels where multigrid stopped (`d_max`, \
          in units of the unit cube; the stop where it did not converge) and in brackets its \
          ratio to the median D (`solvers::fld::multigrid` module docs, \
          \"Why the cloud's FLD-LP cycles grow\"):\n\n{}\n",
-        table(&head, rows)
+        by_n(&["problem", "method"], ns, &[], rows)
     )
 }
 
@@ -710,11 +718,12 @@ impl Experiment for MultigridScaling {
             cells.push(spread);
             rows.push(cells);
         }
-        let mut head: Vec<String> = ["problem", "method", "solver"].map(String::from).to_vec();
-        head.extend(ns.iter().map(|n| format!("n = {n}")));
-        head.push("spread".into());
-        let head: Vec<&str> = head.iter().map(String::as_str).collect();
-        out.push_str(&table(&head, rows));
+        out.push_str(&by_n(
+            &["problem", "method", "solver"],
+            ns.as_slice(),
+            &["spread"],
+            rows,
+        ));
         out.push('\n');
         out.push_str(&d_peaks(&t, &ns));
         out.push_str(&speedups(&t, &ns, "seconds"));

@@ -658,7 +658,6 @@ pub struct CpuMultigrid<T> {
     levels: Vec<Level<T>>,
     config: FldConfig,
     mg: MgConfig,
-    j_ref: f64,
     floor: f64,
     tolerance: f64,
     trivial: bool,
@@ -712,7 +711,6 @@ impl<T: Real> CpuMultigrid<T> {
             ),
         )?;
         let (mut cfg, fine, floor) = fine_level(medium, boundary, config)?;
-        let j_ref = fine.j_ref();
         let trivial = fine.is_trivial();
         cfg.residual_margin = fine.residual_margin();
         let tolerance = fine.tolerance();
@@ -784,7 +782,6 @@ impl<T: Real> CpuMultigrid<T> {
             levels,
             config: cfg,
             mg: mg.clone(),
-            j_ref,
             floor,
             tolerance,
             trivial,
@@ -1272,7 +1269,7 @@ impl<T: Real> CpuMultigrid<T> {
         let seconds = t0.elapsed().as_secs_f64();
         let fine = &self.levels[0];
         let grid = fine.grid;
-        let scale = if self.trivial { 1.0 } else { self.j_ref };
+        let scale = fine.fld.phi_unit();
         let phi = fine.fld.mg_phi().iter().map(|&x| T::c(x * scale)).collect();
         let mut sol = super::solution(
             grid,
@@ -1332,11 +1329,7 @@ pub fn diffusion_field<T: Real>(
         });
     }
     let (cfg, fine, floor) = fine_level(medium, boundary, config)?;
-    let scale = if fine.is_trivial() {
-        1.0
-    } else {
-        1.0 / fine.j_ref()
-    };
+    let scale = 1.0 / fine.phi_unit();
     let [sig, _] = fine.mg_fields();
     drop(fine);
     let normalised: Vec<f64> = phi.par_iter().map(|x| x * scale).collect();
