@@ -385,8 +385,8 @@
 //!   and D = F(R)/σ_ε rises towards 1/(3σ_ε) = 333, and the nearer a voxel centre lies to the
 //!   point, the higher its D. The largest interior D at the converged φ
 //!   ([`diffusion_field`]) is 0.65, 1.76, 9.8 and 111 at n = 31, 63, 127, 255, always at the
-//!   same place ((0.42–0.43, 0.35–0.37, 0.82–0.84) of the unit cube), and the cycles are 14,
-//!   21, 54, 154. The lagged D of the smoother (and of Picard coarse levels) leaves out D's
+//!   same place (its voxel's centre at (0.43–0.44, 0.37–0.38, 0.82–0.86) of the unit cube),
+//!   and the cycles are 14, 21, 54, 154. The lagged D of the smoother (and of Picard coarse levels) leaves out D's
 //!   dependence on φ, which near such a point is as large as the operator itself, and the
 //!   coarse levels do not see the peak: the discrete problems carry a coefficient contrast
 //!   that grows with n, as the point source's one-voxel j does.
@@ -410,9 +410,9 @@
 //!   The θ of the D update is not ([`FldConfig::d_relaxation`] 0.3, 0.5, 0.7, 1: 92, 54, 55,
 //!   98 cycles at n = 127; the default 0.5 stays). Local relaxation at the peak (Brandt's
 //!   remedy for singularities: after each cycle, 2–50 nonlinear Gauss–Seidel sweeps with D
-//!   recomputed, on the voxels whose r² exceeds 100× the mean and their neighbours, 700–1300
-//!   voxels): 54 → 47, 39, 32 cycles at n = 127 with 2, 10, 50 sweeps, 21 → 21 at n = 63,
-//!   but 154 → 239 at n = 255; with a lower threshold (10× and 3× the mean, 65 000–540 000
+//!   recomputed, on the voxels whose r² exceeds 100× the mean and their neighbours, 665–3318
+//!   voxels a cycle where printed): 54 → 47, 39, 32 cycles at n = 127 with 2, 10, 50 sweeps, 21 → 21 at n = 63,
+//!   but 154 → 239 at n = 255; with a lower threshold (10× and 3× the mean, 65 000–541 000
 //!   voxels) 59 and 63 at n = 127; the same sweeps with D held at its value after the cycle
 //!   (linear Gauss–Seidel, 10 and 50 sweeps) 41 and 38 cycles at n = 127, and at n = 255
 //!   `Stalled` after 31. What the peak needs is the limiter's Jacobian (a Newton
