@@ -170,7 +170,13 @@ fn gpu_f_cycles_converge() {
 /// the contrast noise (21) and stalls on 95 % vacuum (R̄/j̄ 2.1·10⁻²) on both. With the F
 /// cycles of the default (2026-12-06): the cloud CDA `Stalled` after 20 cycles on both (R̄/j̄
 /// 9.0·10⁻⁵ and 1.2·10⁻⁴), FLD-LP converged after 16 and 15; 95 % vacuum CDA converged after
-/// 6 on both, FLD-LP `Stalled` after 17 on both (6.0·10⁻³).
+/// 6 on both, FLD-LP `Stalled` after 17 on both (6.0·10⁻³). With the over-relaxed smoother
+/// (ω = 1.2, 2026-12-07) FLD-LP on 95 % vacuum gets to f32's floor instead: the GPU
+/// `Stalled` after 52 cycles at 1.14·10⁻⁵, the CPU-f32 `Converged` after 48 at 8.2·10⁻⁶
+/// (ω = 1.3: 37 and 31 cycles, 1.43·10⁻⁵ and 9.5·10⁻⁶); the cloud CDA `Stalled` after 16
+/// and 17 (9.0·10⁻⁵ and 1.3·10⁻⁴), FLD-LP converged after 14 on both, 95 % vacuum CDA after
+/// 5, the contrast noise after 11 (CDA) and 19 (FLD-LP) on both. So the two stops may differ
+/// only where both ended within 2× of the tolerance, at the floor of f32's residual.
 #[test]
 fn gpu_stalls_are_typed() {
     on_gpu("gpu_stalls_are_typed", |ctx| {
@@ -199,7 +205,16 @@ fn gpu_stalls_are_typed() {
                     c.steps,
                     c.final_residual()
                 );
-                assert_eq!(g.stop, c.stop, "{name} {lim}");
+                if g.stop != c.stop {
+                    for (who, r) in [("GPU", g.final_residual()), ("CPU", c.final_residual())] {
+                        assert!(
+                            r < 2.0 * tol,
+                            "{name} {lim}: stops differ ({} / {}), {who} ended at {r:.2e}",
+                            g.stop,
+                            c.stop
+                        );
+                    }
+                }
                 assert!(g.phi.iter().all(|x| x.is_finite()), "{name} {lim}");
                 if g.stop == Stop::Converged {
                     assert!(g.final_residual() < tol);

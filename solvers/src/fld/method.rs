@@ -82,22 +82,25 @@ impl FldMethod {
         if let Some(t) = params.get("theta") {
             self.config.d_relaxation = t;
         }
-        if let Some(k) = params.get("krylov") {
+        for name in ["krylov", "smoother_omega"] {
+            let Some(v) = params.get(name) else { continue };
             let bad = |reason| SolverError::BadParameter {
-                name: "krylov",
-                value: k,
+                name,
+                value: v,
                 reason,
             };
             let (Solver::Multigrid(mg) | Solver::Auto(mg)) = &mut self.solver else {
-                return Err(bad(
-                    "the Krylov acceleration is a multigrid setting (add :mg or :auto)",
-                ));
+                return Err(bad("a multigrid setting (add :mg or :auto)"));
             };
-            if !(k.fract() == 0.0 && k >= 0.0) {
-                return Err(bad("the Krylov depth is a non-negative integer"));
+            if name == "krylov" {
+                if !(v.fract() == 0.0 && v >= 0.0) {
+                    return Err(bad("the Krylov depth is a non-negative integer"));
+                }
+                mg.krylov = v as usize;
+            } else {
+                mg.smoother_omega = v;
             }
-            // The upper bound is `MgConfig::validate`'s.
-            mg.krylov = k as usize;
+            // The bounds are `MgConfig::validate`'s.
             mg.validate()?;
         }
         self.config.validate()?;
@@ -216,6 +219,11 @@ const PARAMS: &[(&str, &str)] = &[
         "krylov",
         "multigrid (:mg, :auto) only: depth 0–16 of the Krylov acceleration of the cycles; \
          default 3, 0 = plain cycles",
+    ),
+    (
+        "smoother_omega",
+        "multigrid (:mg, :auto) only: ω ∈ (0, 2) of the red-black smoother on every level; \
+         default 1.2, 1 = Gauss–Seidel",
     ),
 ];
 

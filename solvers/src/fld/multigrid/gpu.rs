@@ -1,8 +1,8 @@
 //! FAS multigrid on the GPU (f32): the cycle of [`super::CpuMultigrid`] recorded into one
 //! compute pass per cycle, with the per-level smoother being `fld.wgsl` itself ([`GpuFld`],
-//! one instance per level, ω = 1, never stopping on its own) and the transfers in
-//! `multigrid.wgsl` beside this file (`MgParams` mirrors its `Params`, `SPEC` its bindings;
-//! both checked by `tests/kernel_contract.rs`).
+//! one instance per level at [`super::MgConfig::smoother_omega`], never stopping on its
+//! own) and the transfers in `multigrid.wgsl` beside this file (`MgParams` mirrors its
+//! `Params`, `SPEC` its bindings; both checked by `tests/kernel_contract.rs`).
 //!
 //! The level hierarchy (grids, coarse media, packed initial state) is built once on the host
 //! by [`super::CpuMultigrid::new`] and uploaded; after that nothing but three sums per cycle

@@ -5,7 +5,8 @@
 //! L_c(φ_c) = R(j − L(φ)) + L_c(R̂φ), and φ ← φ + P(φ_c − R̂φ) (Brandt's FAS).
 //!
 //! * **Smoother:** the red-black sweep of FLD Algorithm 1 itself ([`CpuFld`], same arithmetic,
-//!   floors σ_ε and ε, θ-relaxed D update and projection φ ≥ 0), with ω = 1 (Gauss-Seidel).
+//!   floors σ_ε and ε, θ-relaxed D update and projection φ ≥ 0), over-relaxed at ω = 1.2
+//!   ([`MgConfig::smoother_omega`]; Gauss–Seidel, ω = 1, until 2026-12-07: next decisions).
 //! * **Levels (per axis, see `Axis`).** The Dirichlet values sit at the layer voxels'
 //!   centres, so the m interior unknowns of an axis are nodes 1..m between boundary nodes 0
 //!   and m + 1. With m odd the axis is coarsened vertex-wise (coarse node c = fine node 2c,
@@ -52,6 +53,40 @@
 //!   (V → F): point source CDA 6, 6, 7 → 5, 5, 5, FLD-LP 9, 12, 16 → 9, 10, 11; cloud CDA 10,
 //!   13, 17 → 10, 12, 14, FLD-LP 17, 34, 108 → 14, 21, 54. An F-cycle costs about 1.3 V-cycles
 //!   of coarse work for the same 4 fine sweeps, so fewer, flatter cycles win.
+//! * **The smoother's ω: 1.2, over-relaxed red-black ([`MgConfig::smoother_omega`];
+//!   2026-12-07, 2-vCPU AMD EPYC Zen 5, 32 MiB L3).** Red-black SOR smooths better than
+//!   Gauss–Seidel for some ω slightly above 1 (Yavneh's analysis of red-black relaxation as a
+//!   smoother), and a smoother that also damps some smooth error helps where the coarse
+//!   correction is weakest, in vacuum. Measured with `multigrid_scaling --smoother-omega ω`
+//!   (defaults otherwise: F(2, 2), Krylov depth 3; f64, cycles to R̄/j̄ < 10⁻⁶ at n = 31, 63,
+//!   127 for ω = 1, 1.2, 1.3, 1.4, 1.5):
+//!   point source CDA 5,5,5 | 5,5,5 | 5,5,5 | 5,5,5 | 7,6,6; FLD-LP 9,10,11 | 8,9,10 |
+//!   7,9,10 | 7,8,10 | 7,8,10; Fig 4 cloud CDA 10,12,14 | 8,10,12 | 7,9,11 | 7,9,10 | 7,8,9;
+//!   FLD-LP 14,21,54 | 14,20,43 | 13,19,38 | 13,18,36 | 12,17,33; `ball_source` CDA 5,5,5 |
+//!   5,4,4 | 4,4,4 | 5,5,5 | 6,6,5; FLD-LP 7,7,8 | 7,7,7 (the rest 7,7,7); `cloud_thin` CDA
+//!   8,9,9 | 7,8,9 | 6,7,8 (1.4, 1.5 the same); FLD-LP 11,13,15 | 10,12,14 | 10,11,13 |
+//!   9,11,12 | 9,10,12; `cloud_floor` CDA 7,8,8 | 6,7,8 | 6,7,7 | 6,6,7 | 6,7,7; FLD-LP
+//!   9,10,12 | 9,9,11 | 8,9,10 (1.4, 1.5 the same). At n = 255 (ω = 1, 1.2, 1.3): point
+//!   source CDA 5, 5, 4, FLD-LP 13, 12, 12; cloud CDA 16, 14, 12; `ball_source` CDA 4, 4, 4,
+//!   FLD-LP 8, 8, 7; `cloud_thin` CDA 10, 9, 9, FLD-LP 19, 17, 16; `cloud_floor` CDA 9, 8, 8,
+//!   FLD-LP 14, 12, 12; but the cloud with FLD-LP, whose count is set by the peak of D
+//!   (below), 154, 125, 164 (ω = 1.25: 145, 1.4: 173). ω = 1.2 is the largest ω measured that
+//!   needed no more cycles than Gauss–Seidel in any of these 40 runs; 1.3 and above save
+//!   more on the vacuum problems but cost the 255³ cloud FLD-LP 164 cycles, and 1.5 costs
+//!   the point source CDA one or two (7, 6, 6). The Krylov acceleration still pays with
+//!   the over-relaxed smoother (ω = 1.3, depth 0 → 3, n = 31, 63, 127: point source FLD-LP
+//!   10,12,13 → 7,9,10; cloud CDA 12,18,24 → 7,9,11; FLD-LP 15,26,100 → 13,19,38), so its
+//!   depth stays 3. Seconds (`point_source --n 127 --boundary zero --tolerance 1e-6 --solver
+//!   sor,multigrid --limiter cda,lp`, every Fig 5 albedo, one run, a noisy host: SOR's CDA
+//!   sweeps took 0.84–1.53 s for 274–284 of them): SOR / multigrid to the tolerance CDA
+//!   4.5–5.4× (5 cycles, 4 to the tolerance; 4.1–4.8× with ω = 1 in the last session's run),
+//!   FLD-LP 4.0–9.1× (10 cycles; 3.4–6.9× with ω = 1 and 11 cycles); at 255³ CDA 9.4–9.9×
+//!   (543–566 sweeps in 13.9–16.2 s against 1.44–1.64 s; 8.1–11.3× with ω = 1), since the
+//!   cycles to the tolerance stay 4 there. φ agrees with SOR's to 0.4–3.6·10⁻⁶ relative L2
+//!   at both sizes. The GPU runs the same ω (`tests/fld_multigrid_gpu.rs`: FLD-LP on 95 %
+//!   vacuum now gets to f32's floor, ≈ 10⁻⁵, where it stalled at 6·10⁻³ with ω = 1).
+//!   `over_relaxed_smoothing_cuts_cycles` (`tests/fld_multigrid.rs`) pins the cut: cloud
+//!   13 → 10, 30 % vacuum noise 19 → 17, point source CDA 7 → 6, FLD-LP 9 → 8.
 //! * **Coarse Dirichlet layer.** On vertex axes it coincides with the fine one (zero
 //!   correction is exact); on cell axes it sits half a fine voxel further out and by default
 //!   its correction is zero. Extrapolating it linearly to zero at the parent layer's
@@ -334,8 +369,9 @@
 //!   in the kernel (`perf stat`). Touching them in the setup instead would only move
 //!   that time out of the solve's clock, so it was not done.
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
-//!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; at n = 127 with V cycles, 84 of
-//!   108 were Picard cycles after the FAS stalled) and for FLD-LP on the point source (9 → 13): the ≤ 25 % of issue 15
+//!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; with ω = 1.2, 8 → 14 and 14 →
+//!   125; at n = 127 with V cycles, 84 of 108 were Picard cycles after the FAS stalled) and
+//!   for FLD-LP on the point source (9 → 13; with ω = 1.2, 8 → 12): the ≤ 25 % of issue 15
 //!   holds for CDA on the point source only. On small vacuum clouds SOR is faster (CDA n =
 //!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`; `multigrid_scaling` with SOR up
 //!   to n = 127: CDA on the cloud 0.4×, 0.7×, 1.6× at n = 31, 63, 127). A CDA work unit of multigrid costs about 3.9 SOR sweeps of
@@ -533,6 +569,11 @@ pub struct MgConfig {
     /// How the coarse operators are formed: rediscretised (the default) or Galerkin
     /// (constant limiters on the CPU only).
     pub coarse_op: CoarseOp,
+    /// The relaxation factor ω of the red-black smoother on every level (FLD Algorithm 1's
+    /// SOR step; 1 = Gauss–Seidel), in (0, 2). Default 1.3: over-relaxed red-black smoothing
+    /// took the same or fewer cycles than Gauss–Seidel on every `multigrid_scaling` problem
+    /// (measured in the module docs, "The smoother's ω").
+    pub smoother_omega: f64,
 }
 
 /// The operators of the coarse levels.
@@ -592,6 +633,13 @@ impl MgConfig {
                 reason: "multigrid needs at least one pre- or post-smoothing sweep",
             });
         }
+        if !(self.smoother_omega > 0.0 && self.smoother_omega < 2.0) {
+            return Err(SolverError::BadParameter {
+                name: "smoother_omega",
+                value: self.smoother_omega,
+                reason: "the smoother's relaxation factor must lie in (0, 2)",
+            });
+        }
         if self.krylov > MAX_KRYLOV {
             return Err(SolverError::BadParameter {
                 name: "krylov",
@@ -625,6 +673,7 @@ impl Default for MgConfig {
             krylov: 3,
             coarse_d: CoarseD::Auto,
             coarse_op: CoarseOp::Rediscretised,
+            smoother_omega: 1.2,
         }
     }
 }
@@ -710,7 +759,7 @@ impl<T: Real> CpuMultigrid<T> {
                 8,
             ),
         )?;
-        let (mut cfg, fine, floor) = fine_level(medium, boundary, config)?;
+        let (mut cfg, fine, floor) = fine_level(medium, boundary, config, mg.smoother_omega)?;
         let trivial = fine.is_trivial();
         cfg.residual_margin = fine.residual_margin();
         let tolerance = fine.tolerance();
@@ -1288,16 +1337,17 @@ impl<T: Real> CpuMultigrid<T> {
     }
 }
 
-/// The finest level's settings (ω = 1: Gauss–Seidel smoothing; σ_ε made explicit, so the
-/// coarse levels keep the finest grid's), its smoother and the floor of R's numerator and
-/// denominator (ε of FLD Eq 35, at least the smallest positive `T`).
+/// The finest level's settings (the smoother's ω, [`MgConfig::smoother_omega`]; σ_ε made
+/// explicit, so the coarse levels keep the finest grid's), its smoother and the floor of R's
+/// numerator and denominator (ε of FLD Eq 35, at least the smallest positive `T`).
 fn fine_level<T: Real>(
     medium: &Medium<T>,
     boundary: &Boundary<T>,
     config: &FldConfig,
+    omega: f64,
 ) -> Result<(FldConfig, CpuFld<T>, f64), SolverError> {
     let mut cfg = config.clone();
-    cfg.omega = 1.0;
+    cfg.omega = omega;
     cfg.sigma_eps = Some(config.sigma_eps.unwrap_or(1e-3 / medium.grid.extent()));
     let fine = CpuFld::new(medium, boundary, &cfg)?;
     let floor = cfg
@@ -1328,7 +1378,8 @@ pub fn diffusion_field<T: Real>(
             got: phi.len(),
         });
     }
-    let (cfg, fine, floor) = fine_level(medium, boundary, config)?;
+    // ω plays no part in D.
+    let (cfg, fine, floor) = fine_level(medium, boundary, config, 1.0)?;
     let scale = 1.0 / fine.phi_unit();
     let [sig, _] = fine.mg_fields();
     drop(fine);
