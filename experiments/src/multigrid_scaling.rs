@@ -675,7 +675,7 @@ impl Experiment for MultigridScaling {
             "CPU f64 (GPU: f32), zero boundary, stop at R̄/j̄ below the run's tolerance (`meta.json`). Multigrid: FAS F(2,2) \
              (`solvers::fld::multigrid`; CPU: Krylov-accelerated, depth `krylov` in `meta.json`; red-black smoothing at ω = `smoother_omega`); SOR: FLD Algorithm 1 at the Poisson-optimal ω(n). Steps are SOR \
              iterations or multigrid cycles; work units count fine red-black sweeps. Spread: max/min − 1 of the \
-             multigrid cycles over the n that converged (grid independence: issue 15 asks ≤ 25 %).\n\n",
+             multigrid cycles over the n that converged (grid independence: issue 15 asks ≤ 25\u{a0}%).\n\n",
         );
         let ns = t.distinct("n");
         let mut rows = Vec::new();
