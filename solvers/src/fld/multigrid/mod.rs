@@ -83,7 +83,9 @@
 //!   FLD-LP 4.0–9.1× (10 cycles; 3.4–6.9× with ω = 1 and 11 cycles); at 255³ CDA 9.4–9.9×
 //!   (543–566 sweeps in 13.9–16.2 s against 1.44–1.64 s; 8.1–11.3× with ω = 1), since the
 //!   cycles to the tolerance stay 4 there. φ agrees with SOR's to 0.4–3.6·10⁻⁶ relative L2
-//!   at both sizes. The GPU runs the same ω (`tests/fld_multigrid_gpu.rs`: FLD-LP on 95 %
+//!   at both sizes. The GPU runs the same ω (`tests/fld_multigrid_gpu.rs` on lavapipe, ω =
+//!   1.2: the 33³ point source and the 24 × 20 × 27 block in 4–6 cycles, the same count as
+//!   the CPU-f32 multigrid in all 12 cases, 1.3–12·10⁻⁷ relative L2 apart; FLD-LP on 95 %
 //!   vacuum now gets to f32's floor, ≈ 10⁻⁵, where it stalled at 6·10⁻³ with ω = 1).
 //!   `over_relaxed_smoothing_cuts_cycles` (`tests/fld_multigrid.rs`) pins the cut: cloud
 //!   13 → 10, 30 % vacuum noise 19 → 17, point source CDA 7 → 6, FLD-LP 9 → 8. The committed
@@ -493,7 +495,10 @@
 //!   and 32.6 s against 8.85 s at 255³, the point source 3.15 s against 0.51 s.
 //!   So the rediscretised levels stay the default. Galerkin operators roughly halve the
 //!   cloud's growth but do not reach issue 15's ≤ 25 % at vacuum contrast either here or in
-//!   the script; for FLD they would need Pᵀ A(D) P once per cycle of the Picard linearisation
+//!   the script; with the over-relaxed smoother of the finest level (ω = 1.2, 2026-12-07,
+//!   Zen 5 host, same driver) they take 7, 8, 8, 10 cycles at n = 31…255 (+43 %; R̄/j̄
+//!   1.2·10⁻⁶ after the 9th at 255, 85 s and a setup of 18 s there), against 8, 10, 12, 14
+//!   rediscretised; for FLD they would need Pᵀ A(D) P once per cycle of the Picard linearisation
 //!   (not built). `galerkin_coarse_levels_cut_cda_cycles_on_the_vacuum_cloud`
 //!   (`tests/fld_multigrid.rs`) pins the agreement with SOR and the cycle cut.
 //! * **GPU ([`gpu`], issue 15 item 2).** The same cycle in f32 on the device: the smoother of
