@@ -76,7 +76,12 @@
 //!   the point source CDA one or two (7, 6, 6). The Krylov acceleration still pays with
 //!   the over-relaxed smoother (ω = 1.3, depth 0 → 3, n = 31, 63, 127: point source FLD-LP
 //!   10,12,13 → 7,9,10; cloud CDA 12,18,24 → 7,9,11; FLD-LP 15,26,100 → 13,19,38), so its
-//!   depth stays 3. Seconds (`point_source --n 127 --boundary zero --tolerance 1e-6 --solver
+//!   depth stays 3. Nor does the cheaper F(1, 2) pay with it (ω = 1.2, n = 127, an ad-hoc
+//!   driver, two alternating runs each): point source CDA 5 cycles either way (19.6 against
+//!   26.1 work units) but 0.27–0.28 s to the tolerance against 0.20–0.23 s, FLD-LP 11
+//!   against 10 cycles (1.53–1.59 s against 1.43–1.62 s), cloud CDA 13 against 12
+//!   (0.59–0.67 s against 0.66–0.67 s), FLD-LP 51 against 43 (6.8–7.2 s against 6.5–7.6 s):
+//!   F(2, 2) stays. Seconds (`point_source --n 127 --boundary zero --tolerance 1e-6 --solver
 //!   sor,multigrid --limiter cda,lp`, every Fig 5 albedo, one run, a noisy host: SOR's CDA
 //!   sweeps took 0.84–1.53 s for 274–284 of them): SOR / multigrid to the tolerance CDA
 //!   4.5–5.4× (5 cycles, 4 to the tolerance; 4.1–4.8× with ω = 1 in the last session's run),
