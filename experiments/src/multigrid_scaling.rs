@@ -14,7 +14,7 @@
 //!
 //! Multigrid is the FAS F(2,2) of [`solvers::fld::multigrid`] (on the CPU with the Krylov
 //! acceleration of depth `--krylov`, default 3; red-black smoothing at ω = `--smoother-omega`,
-//! default 1.3); SOR is FLD Algorithm 1 with
+//! default 1.2); SOR is FLD Algorithm 1 with
 //! the Poisson-optimal ω(n) and runs only for n ≤ `--sor-max-n`, default 127 (its iterations
 //! grow like n^1–n^1.7: the cloud with FLD-LP took 4347 iterations, 30 s without setup, at 127³ in the committed run;
 //! SOR at 255³ is measured in the `multigrid` module docs instead). Grid-independent convergence means the cycle count stays flat in n (acceptance 2
