@@ -190,14 +190,7 @@ fn sigma_eps(problem: &str) -> Option<f64> {
 fn d_stats(m: &Medium<f64>, phi: &[f64], cfg: &FldConfig) -> Result<(f64, f64)> {
     let d = fld::multigrid::diffusion_field(m, &Boundary::Zero, phi, cfg)
         .context("D at the solution")?;
-    let g = m.grid;
-    let mut inner: Vec<f64> = (0..d.len())
-        .filter(|&p| {
-            let [i, j, k] = g.coords(p);
-            !g.is_boundary(i, j, k)
-        })
-        .map(|p| d[p])
-        .collect();
+    let mut inner: Vec<f64> = m.grid.interior().map(|p| d[p]).collect();
     if inner.is_empty() {
         return Ok((f64::NAN, f64::NAN));
     }

@@ -108,6 +108,16 @@ impl Grid {
         i == 0 || j == 0 || k == 0 || i + 1 == self.n[0] || j + 1 == self.n[1] || k + 1 == self.n[2]
     }
 
+    /// The linear indices of the voxels inside the boundary layer (not [`Grid::is_boundary`]),
+    /// in index order.
+    pub fn interior(&self) -> impl Iterator<Item = usize> + use<> {
+        let g = *self;
+        (0..g.len()).filter(move |&p| {
+            let [i, j, k] = g.coords(p);
+            !g.is_boundary(i, j, k)
+        })
+    }
+
     /// Samples `f` at every voxel centre, in index order.
     pub fn sample<T>(&self, mut f: impl FnMut([f64; 3]) -> T) -> Vec<T> {
         let mut out = Vec::with_capacity(self.len());
@@ -133,6 +143,23 @@ mod tests {
             let [i, j, k] = g.coords(idx);
             assert_eq!(g.index(i, j, k), idx);
         }
+    }
+
+    #[test]
+    fn interior_is_the_box_inside_the_layer() {
+        let g = Grid::new([5, 4, 3], 0.5).unwrap();
+        let inner: Vec<usize> = g.interior().collect();
+        assert_eq!(
+            inner,
+            [
+                g.index(1, 1, 1),
+                g.index(2, 1, 1),
+                g.index(3, 1, 1),
+                g.index(1, 2, 1),
+                g.index(2, 2, 1),
+                g.index(3, 2, 1)
+            ]
+        );
     }
 
     #[test]
