@@ -82,23 +82,29 @@ impl FldMethod {
         if let Some(t) = params.get("theta") {
             self.config.d_relaxation = t;
         }
-        for name in ["krylov", "smoother_omega"] {
-            let Some(v) = params.get(name) else { continue };
-            let bad = |reason| SolverError::BadParameter {
+        let (krylov, omega) = (params.get("krylov"), params.get("smoother_omega"));
+        let named = [("krylov", krylov), ("smoother_omega", omega)];
+        if let Some((name, value)) = named.into_iter().find_map(|(n, v)| Some((n, v?))) {
+            let bad = |name, value, reason| SolverError::BadParameter {
                 name,
-                value: v,
+                value,
                 reason,
             };
             let (Solver::Multigrid(mg) | Solver::Auto(mg)) = &mut self.solver else {
-                return Err(bad("a multigrid setting (add :mg or :auto)"));
+                return Err(bad(name, value, "a multigrid setting (add :mg or :auto)"));
             };
-            if name == "krylov" {
-                if !(v.fract() == 0.0 && v >= 0.0) {
-                    return Err(bad("the Krylov depth is a non-negative integer"));
+            if let Some(k) = krylov {
+                if !(k.fract() == 0.0 && k >= 0.0) {
+                    return Err(bad(
+                        "krylov",
+                        k,
+                        "the Krylov depth is a non-negative integer",
+                    ));
                 }
-                mg.krylov = v as usize;
-            } else {
-                mg.smoother_omega = v;
+                mg.krylov = k as usize;
+            }
+            if let Some(w) = omega {
+                mg.smoother_omega = w;
             }
             // The bounds are `MgConfig::validate`'s.
             mg.validate()?;
