@@ -300,7 +300,7 @@ fn compare_cycles(a: &MgConfig, b: &MgConfig, what: &str, ratio: [f64; 4]) {
 
 /// Krylov acceleration ([`MgConfig::krylov`], default 3) against plain cycles, both with the
 /// default smoother: where vacuum makes the plain cycle slow (CDA on the Fig 4 cloud and on
-/// white noise with 30 % vacuum) the accelerated one needs at most 85 % (cloud) and 60 %
+/// white noise with 30 % vacuum) the accelerated one needs at most 75 % (cloud) and 60 %
 /// (noise) of its cycles, on the homogeneous point source no more, and both reach the same φ.
 /// Measured (2026-12-07, F cycles, smoother ω = 1.2): cloud 14 → 10 cycles, noise 37 → 17,
 /// point source CDA 7 → 6 and FLD-LP 10 → 8; rel. L2 between the two 5.0·10⁻¹⁰ at most.
@@ -315,7 +315,7 @@ fn krylov_acceleration_cuts_cycles_where_vacuum_slows_the_plain_cycle() {
         &plain,
         &MgConfig::default(),
         "krylov 3",
-        [0.85, 0.6, 1.0, 1.0],
+        [0.75, 0.6, 1.0, 1.0],
     );
 }
 
@@ -637,15 +637,8 @@ fn cycles_do_not_grow_with_n_for_a_source_of_fixed_size() {
 fn the_cloud_s_fld_cycles_follow_the_peak_of_d_in_its_vacuum() {
     let lp = FluxLimiter::LevermorePomraning;
     let field = solvers::fld::multigrid::diffusion_field::<f64>;
-    let interior_max = |m: &Medium<f64>, d: &[f64]| {
-        (0..d.len())
-            .filter(|&p| {
-                let [i, j, k] = m.grid.coords(p);
-                !m.grid.is_boundary(i, j, k)
-            })
-            .map(|p| d[p])
-            .fold(0.0f64, f64::max)
-    };
+    let interior_max =
+        |m: &Medium<f64>, d: &[f64]| m.grid.interior().map(|p| d[p]).fold(0.0f64, f64::max);
     let mut peaks = Vec::new();
     let mut cycles = Vec::new();
     for n in [31, 63] {
