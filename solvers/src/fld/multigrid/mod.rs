@@ -584,9 +584,10 @@ pub struct MgConfig {
     /// (constant limiters on the CPU only).
     pub coarse_op: CoarseOp,
     /// The relaxation factor ω of the red-black smoother on every level (FLD Algorithm 1's
-    /// SOR step; 1 = Gauss–Seidel), in (0, 2). Default 1.3: over-relaxed red-black smoothing
-    /// took the same or fewer cycles than Gauss–Seidel on every `multigrid_scaling` problem
-    /// (measured in the module docs, "The smoother's ω").
+    /// SOR step; 1 = Gauss–Seidel), in (0, 2). Default 1.2: over-relaxed red-black smoothing
+    /// took the same or fewer cycles than Gauss–Seidel in each of the 40 `multigrid_scaling`
+    /// runs measured (every problem and limiter at n = 31…255), where larger ω did not
+    /// (module docs, "The smoother's ω").
     pub smoother_omega: f64,
 }
 
