@@ -14,7 +14,7 @@
 //!
 //! Multigrid is the FAS F(2,2) of [`solvers::fld::multigrid`] (on the CPU with the Krylov
 //! acceleration of depth `--krylov`, default 3; red-black smoothing at ω = `--smoother-omega`,
-//! default 1.2); SOR is FLD Algorithm 1 with
+//! default 1.2; `--local-sweeps` extra sweeps, default 8, around a point-like source); SOR is FLD Algorithm 1 with
 //! the Poisson-optimal ω(n) and runs only for n ≤ `--sor-max-n`, default 127 (its iterations
 //! grow like n^1–n^1.7: the cloud with FLD-LP took 4347 iterations, 30 s without setup, at 127³ in the committed run;
 //! SOR at 255³ is measured in the `multigrid` module docs instead). Grid-independent convergence means the cycle count stays flat in n (acceptance 2
@@ -103,6 +103,11 @@ pub struct Args {
     /// (`MgConfig::smoother_omega`; 1 = Gauss–Seidel).
     #[arg(long, default_value_t = solvers::fld::multigrid::MgConfig::default().smoother_omega)]
     pub smoother_omega: f64,
+    /// Extra red-black sweeps of multigrid's local relaxation around point-like sources on
+    /// the CPU (`MgConfig::local_sweeps`; 0 = none; the point source gets a box, the clouds
+    /// none).
+    #[arg(long, default_value_t = solvers::fld::multigrid::MgConfig::default().local_sweeps)]
+    pub local_sweeps: usize,
 }
 
 /// One row of `steps.csv`.
@@ -243,11 +248,12 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
     let mg_config = solvers::fld::multigrid::MgConfig {
         krylov: args.krylov,
         smoother_omega: args.smoother_omega,
+        local_sweeps: args.local_sweeps,
         ..Default::default()
     };
     mg_config
         .validate()
-        .context("--krylov / --smoother-omega")?;
+        .context("--krylov / --smoother-omega / --local-sweeps")?;
     for p in &args.problems {
         if !PROBLEMS.contains(&p.as_str()) {
             return Err(unknown_problem(p));
@@ -263,9 +269,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
         "limiters": args.limiters.iter().map(|l| l.to_string()).collect::<Vec<_>>(),
         "tolerance": args.tolerance, "albedo": args.albedo, "max_cycles": args.max_cycles,
         "max_iterations": args.max_iterations, "seed": args.seed,
-        "multigrid": "FAS F(2,2), solvers::fld::multigrid::MgConfig::default() with --krylov and --smoother-omega (CPU; the GPU runs plain FAS cycles)",
+        "multigrid": "FAS F(2,2), solvers::fld::multigrid::MgConfig::default() with --krylov, --smoother-omega and --local-sweeps (CPU; the GPU runs plain FAS cycles)",
         "krylov": args.krylov,
         "smoother_omega": args.smoother_omega,
+        "local_sweeps": args.local_sweeps,
+        "local_radius": mg_config.local_radius,
         "sor_omega": "FldConfig::poisson_optimal_omega(n)",
         "precision": "cpu f64, gpu f32",
     }))?;
@@ -666,7 +674,7 @@ impl Experiment for MultigridScaling {
         t.require(STEP_COLUMNS)?;
         let mut out = String::from(
             "CPU f64 (GPU: f32), zero boundary, stop at R̄/j̄ below the run's tolerance (`meta.json`). Multigrid: FAS F(2,2) \
-             (`solvers::fld::multigrid`; CPU: Krylov-accelerated, depth `krylov` in `meta.json`; red-black smoothing at ω = `smoother_omega`); SOR: FLD Algorithm 1 at the Poisson-optimal ω(n). Steps are SOR \
+             (`solvers::fld::multigrid`; CPU: Krylov-accelerated, depth `krylov` in `meta.json`; red-black smoothing at ω = `smoother_omega`; `local_sweeps` extra sweeps in a box of optical half-width `local_radius` around a point-like source); SOR: FLD Algorithm 1 at the Poisson-optimal ω(n). Steps are SOR \
              iterations or multigrid cycles; work units count fine red-black sweeps. Spread: max/min − 1 of the \
              multigrid cycles over the n that converged (grid independence: issue 15 asks ≤ 25\u{a0}%).\n\n",
         );

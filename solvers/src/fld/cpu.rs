@@ -408,6 +408,26 @@ impl<T: Real> CpuFld<T> {
             });
     }
 
+    /// [`CpuFld::mg_set`] of φ (`which` = 0) or D (1) for the voxels of the box `lo..=hi`
+    /// only (multigrid's local relaxation, [`super::multigrid`]).
+    pub(super) fn mg_set_box(&mut self, which: usize, v: &[f64], lo: [usize; 3], hi: [usize; 3]) {
+        self.black_x_ends_fresh = false;
+        let (g, h) = (self.grid, self.h);
+        let f = if which == 0 {
+            &mut self.phi
+        } else {
+            &mut self.d
+        };
+        for k in lo[2]..=hi[2] {
+            for j in lo[1]..=hi[1] {
+                for i in lo[0]..=hi[0] {
+                    let (c, q) = packed_index(&g, h, i, j, k);
+                    f[c][q] = T::c(v[g.index(i, j, k)]);
+                }
+            }
+        }
+    }
+
     /// Runs one red-black iteration and returns the normalised residual R̄/j̄ measured during it.
     pub fn iterate(&mut self) -> f64 {
         if self.trivial {

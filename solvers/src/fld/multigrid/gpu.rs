@@ -24,14 +24,15 @@
 //!   f64 around an f32 smoother. R̄/j̄ then floors where f32 rounding dominates: it reached
 //!   9·10⁻⁸ on the 33³ point source, but on the Fig 4 cloud CDA stops `Stalled` near 10⁻⁴ (as
 //!   the CPU-f32 multigrid does; the f32 default tolerance is 10⁻⁴). GPU vs CPU-f32 is compared at convergence (`tests/fld_multigrid_gpu.rs`).
-//! * **Plain FAS cycles: [`MgConfig::krylov`] and the stall fallback of [`super::CoarseD::Auto`]
-//!   are CPU settings, ignored here** ([`super::CoarseD::Restricted`] is refused with a typed
+//! * **Plain FAS cycles: [`MgConfig::krylov`], the stall fallback of [`super::CoarseD::Auto`]
+//!   and the local relaxation of [`MgConfig::local_sweeps`] are CPU settings, ignored here** ([`super::CoarseD::Restricted`] is refused with a typed
 //!   error). The CPU's Krylov acceleration keeps 2(k + 1) fine-grid vectors and needs k + 1
 //!   dot products and a combination pass per cycle; on the device that is k + 1 more sums
 //!   per read-back and 2(k + 1) more bindings than the transfer kernel's, and the Picard
 //!   coarse levels need a smoother that leaves D alone on coarse levels only; neither is
-//!   built yet. The GPU therefore runs the cycles the CPU runs with `krylov: 0` and
-//!   `CoarseD::Recomputed`, and is compared with those (`tests/fld_multigrid_gpu.rs`).
+//!   built yet (nor are the local boxes' sweeps). The GPU therefore runs the cycles the CPU
+//!   runs with `krylov: 0`, `CoarseD::Recomputed` and `local_sweeps: 0`
+//!   ([`MgConfig::plain_fas`]), and is compared with those (`tests/fld_multigrid_gpu.rs`).
 
 use super::{Contraction, CpuMultigrid, Cycle, MgConfig, axes};
 use crate::fld::gpu::{GpuFld, larsen_n, limiter_id};

@@ -379,6 +379,35 @@
 //!   and the whole process, setup and teardown included, spent 1.7 of its 4.8 CPU seconds
 //!   in the kernel (`perf stat`). Touching them in the setup instead would only move
 //!   that time out of the solve's clock, so it was not done.
+//! * **Local relaxation around point-like sources ([`MgConfig::local_sweeps`] = 8 in a box of
+//!   optical half-width [`MgConfig::local_radius`] = 0.5; module [`local`]; 2026-12-07, 2-vCPU
+//!   AMD EPYC Zen 5, 32 MiB L3).** *Why*: FLD-LP's cycles on the point source grew with n (8,
+//!   9, 10, 12 at n = 31…255), and a build that printed where Σr² sits after each cycle (not
+//!   kept) put 90–99 % of it within 8 voxels of the source at n = 255 for the first 8 cycles
+//!   (the one-voxel source holds j = 1/Δl³; R ≈ 1/(σr) near it grows as Δl shrinks). Brandt's
+//!   remedy for such singularities is extra relaxation in a neighbourhood of fixed physical
+//!   size. Measured on an ad-hoc driver (`point_source` medium, τ = 4, albedo 0.5, cycles to
+//!   R̄/j̄ < 10⁻⁶ at n = 31, 63, 127, 255), FLD-LP: none 8, 9, 10, 12; a box of 8 voxels and 8
+//!   sweeps after the coarse-grid correction 6 (n = 63), 8 (127); also after the
+//!   post-smoothing 6, 6, 7, 9 (a fixed box in voxels does not keep up with n: at n = 255 the
+//!   residual then sat 17–32 voxels out, at the box's edge); a box of n/8 voxels (optical
+//!   half-width 0.5) at both places 6, 6, 7, 7 and after the correction only 6, 6, 7, 9;
+//!   before the pre-smoothing instead: worse (n = 63: 9, first residual 2.2); selecting the
+//!   voxels with R > 4 instead of a box (the Dirichlet layer's neighbourhood, where φ → 0,
+//!   is selected too) 6, 7, 7, 8. As built (the box ⌈τ₀/(σΔl)⌉ = 4, 8, 16, 32 voxels, at both
+//!   places, D recomputed before each colour): FLD-LP **6, 6, 6, 7** (17 % spread; was 50 %),
+//!   CDA 4, 4, 4, 4 cycles with R̄/j̄ below 10⁻⁶ after the 3rd at n = 31, 127, 255 (was 5, 5,
+//!   5, 5 and the 4th). Seconds to the tolerance, alternating builds, two runs each, albedo
+//!   0.99: 127³ CDA 0.192–0.194 → 0.176–0.178 s, FLD-LP 1.245–1.248 → 0.809–0.819 s (10 → 7
+//!   cycles); 255³ CDA 1.40–1.47 → 1.26 s, FLD-LP 10.3–10.4 → 8.0–8.4 s (12 → 8 cycles). The
+//!   boxes cost 8 sweeps × 2 × 1.6 % of the grid per cycle plus their D, which is why CDA
+//!   gains less than its cycle: 4 sweeps and radius 0.5 took 8, 9 cycles at n = 127, 255
+//!   (0.90, 7.6 s), 8 sweeps and radius 0.25 7, 8 (0.87, 7.3 s), 16 and 0.25 7, 8 (0.77,
+//!   7.3 s): within the host's noise of the default. Media without a voxel holding 1 % of
+//!   the emission (the Fig 4 clouds of `multigrid_scaling`) get no box and run exactly as
+//!   before. Pinned by `local_relaxation_keeps_the_point_source_flat_in_n`
+//!   (`tests/fld_multigrid.rs`: 8, 9, 10 → 6, 6, 6 at n = 31, 63, 127) and the box rule by
+//!   `local::tests`.
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; with ω = 1.2, 8 → 14 and 14 →
 //!   125; at n = 127 with V cycles, 84 of 108 were Picard cycles after the FAS stalled) and
@@ -525,8 +554,10 @@
 //!
 mod galerkin;
 pub mod gpu;
+mod local;
 
 pub use gpu::GpuMultigrid;
+pub use local::{MAX_BOXES, POINT_SHARE};
 
 use super::{Boundary, CpuFld, FldConfig, FldSolution, FluxLimiter};
 use crate::fld::residual::ResidualWindow;
@@ -539,6 +570,9 @@ use std::time::Instant;
 /// The largest [`MgConfig::krylov`] accepted (the history's least-squares system is solved
 /// by dense elimination on the host, and every step of depth costs two fine-grid vectors).
 pub const MAX_KRYLOV: usize = 16;
+
+/// The largest [`MgConfig::local_sweeps`] accepted.
+pub const MAX_LOCAL_SWEEPS: usize = 64;
 
 /// V- or F-cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -589,6 +623,13 @@ pub struct MgConfig {
     /// runs measured (every problem and limiter at n = 31…255), where larger ω did not
     /// (module docs, "The smoother's ω").
     pub smoother_omega: f64,
+    /// Extra red-black sweeps, twice per cycle, on the finest level in a box around each
+    /// point-like source (Brandt's local relaxation near singularities; [`POINT_SHARE`],
+    /// [`MAX_BOXES`]); 0 = none. CPU only. Default 8 (module docs, "Local relaxation").
+    pub local_sweeps: usize,
+    /// The optical half-width τ₀ of those boxes (per axis ⌈τ₀ / (σΔl)⌉ voxels with the
+    /// source voxel's σ, at most a quarter of the axis). Default 0.5.
+    pub local_radius: f64,
 }
 
 /// The operators of the coarse levels.
@@ -655,6 +696,20 @@ impl MgConfig {
                 reason: "the smoother's relaxation factor must lie in (0, 2)",
             });
         }
+        if !(self.local_radius.is_finite() && self.local_radius > 0.0) {
+            return Err(SolverError::BadParameter {
+                name: "local_radius",
+                value: self.local_radius,
+                reason: "the optical half-width of the local relaxation boxes must be finite and > 0",
+            });
+        }
+        if self.local_sweeps > MAX_LOCAL_SWEEPS {
+            return Err(SolverError::BadParameter {
+                name: "local_sweeps",
+                value: self.local_sweeps as f64,
+                reason: "the local relaxation sweeps are an integer from 0 to 64",
+            });
+        }
         if self.krylov > MAX_KRYLOV {
             return Err(SolverError::BadParameter {
                 name: "krylov",
@@ -671,6 +726,7 @@ impl MgConfig {
         Self {
             krylov: 0,
             coarse_d: CoarseD::Recomputed,
+            local_sweeps: 0,
             ..self.clone()
         }
     }
@@ -689,6 +745,8 @@ impl Default for MgConfig {
             coarse_d: CoarseD::Auto,
             coarse_op: CoarseOp::Rediscretised,
             smoother_omega: 1.2,
+            local_sweeps: 8,
+            local_radius: 0.5,
         }
     }
 }
@@ -737,6 +795,9 @@ pub struct CpuMultigrid<T> {
     serial: Option<rayon::ThreadPool>,
     /// [`CoarseOp::Galerkin`]: the operators of levels 1, 2, … (empty otherwise).
     galerkin: Vec<galerkin::BoxStencil>,
+    /// [`MgConfig::local_sweeps`]: the boxes around the point-like sources of the finest
+    /// level (empty if none or if the local relaxation is off).
+    local: Vec<local::LocalBox>,
 }
 
 impl<T: Real> CpuMultigrid<T> {
@@ -858,7 +919,12 @@ impl<T: Real> CpuMultigrid<T> {
             frozen: false,
             serial: rayon::ThreadPoolBuilder::new().num_threads(1).build().ok(),
             galerkin: Vec::new(),
+            local: Vec::new(),
         };
+        if mg.local_sweeps > 0 && !trivial {
+            let f = &solve.levels[0];
+            solve.local = local::source_boxes(&f.grid, &f.rhs, &f.sig, mg.local_radius);
+        }
         if mg.coarse_op == CoarseOp::Galerkin {
             solve.build_galerkin()?;
         }
@@ -1123,6 +1189,7 @@ impl<T: Real> CpuMultigrid<T> {
             // [`CoarseOp::Galerkin`] (l = 0): the coarse levels solve for the correction.
             self.give(l, d);
             self.galerkin_correct(l, r, kind, &mut phi, true);
+            self.relax_locally(&mut phi);
             self.set_phi(l, phi);
             for _ in 0..self.mg.post {
                 self.sweep(l);
@@ -1179,10 +1246,39 @@ impl<T: Real> CpuMultigrid<T> {
         prolong_add(&fg, &cg, &e, &mut phi, true);
         self.give(l + 1, e);
         self.give(l + 1, phi_c0);
+        if l == 0 {
+            self.relax_locally(&mut phi);
+        }
         self.set_phi(l, phi);
         for _ in 0..self.mg.post {
             self.sweep(l);
         }
+    }
+
+    /// [`MgConfig::local_sweeps`] sweeps over every local box of the finest level, on φ in
+    /// natural layout (the caller hands it to the smoother); returns the boxes relaxed.
+    fn relax_locally(&mut self, phi: &mut [f64]) -> Vec<local::LocalBox> {
+        if self.local.is_empty() {
+            return Vec::new();
+        }
+        let lv = &self.levels[0];
+        let f = local::Fields {
+            grid: &lv.grid,
+            rhs: &lv.rhs,
+            sig: &lv.sig,
+            absorb: &lv.absorb,
+            d_fixed: lv.d_fixed.as_deref(),
+            config: &self.config,
+            floor: self.floor,
+            omega: self.mg.smoother_omega,
+        };
+        let sweeps = self.mg.local_sweeps;
+        for b in &self.local {
+            local::relax(&f, b, phi, sweeps);
+        }
+        let voxels: usize = self.local.iter().map(local::LocalBox::len).sum();
+        self.work += (sweeps * voxels) as f64 / lv.grid.len() as f64;
+        self.local.clone()
     }
 
     /// Hands φ (natural layout, a pooled vector) to level `l`'s smoother with D recomputed
@@ -1245,7 +1341,17 @@ impl<T: Real> CpuMultigrid<T> {
         self.cycle_at(0, self.mg.cycle);
         let mut phi = self.take(0);
         self.levels[0].fld.mg_phi_into(&mut phi);
+        let relaxed = self.relax_locally(&mut phi);
         let d = self.fresh_d(0, &phi);
+        // The smoother's state follows the relaxed boxes (φ, and D one voxel around them).
+        for b in relaxed {
+            let fl = &mut self.levels[0].fld;
+            fl.mg_set_box(0, &phi, b.lo, b.hi);
+            if let Some(d) = &d {
+                let e = b.grown(1);
+                fl.mg_set_box(1, d, e.lo, e.hi);
+            }
+        }
         let r = self.residual(0, &phi, &d);
         self.give(0, d);
         let w = ResidualWindow::new(&self.levels[0].grid, self.config.residual_margin);
