@@ -410,9 +410,10 @@
 //!   `local::tests`.
 //! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; with ω = 1.2, 8 → 14 and 14 →
-//!   125; at n = 127 with V cycles, 84 of 108 were Picard cycles after the FAS stalled) and
-//!   for FLD-LP on the point source (9 → 13; with ω = 1.2, 8 → 12): the ≤ 25 % of issue 15
-//!   holds for CDA on the point source only. On small vacuum clouds SOR is faster (CDA n =
+//!   125; at n = 127 with V cycles, 84 of 108 were Picard cycles after the FAS stalled). For
+//!   FLD-LP on the point source they grew too (9 → 13; with ω = 1.2, 8 → 12) until the local
+//!   relaxation (above: 6, 6, 6, 7): the ≤ 25 % of issue 15 now holds on the point source
+//!   for CDA and FLD-LP, not on the cloud. On small vacuum clouds SOR is faster (CDA n =
 //!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`; `multigrid_scaling` with SOR up
 //!   to n = 127: CDA on the cloud 0.4×, 0.7×, 1.6× at n = 31, 63, 127). A CDA work unit of multigrid costs about 3.9 SOR sweeps of
 //!   wall time (127³, α = 0.5: 0.40 s / 26.1 work units against SOR's 1.09 s / 277 sweeps;
