@@ -380,7 +380,7 @@
 //!   in the kernel (`perf stat`). Touching them in the setup instead would only move
 //!   that time out of the solve's clock, so it was not done.
 //! * **Local relaxation around point-like sources ([`MgConfig::local_sweeps`] = 8 in a box of
-//!   optical half-width [`MgConfig::local_radius`] = 0.5; module [`local`]; 2026-12-07, 2-vCPU
+//!   optical half-width [`MgConfig::local_radius`] = 0.5; `multigrid/local.rs`; 2026-12-07, 2-vCPU
 //!   AMD EPYC Zen 5, 32 MiB L3).** *Why*: FLD-LP's cycles on the point source grew with n (8,
 //!   9, 10, 12 at n = 31…255), and a build that printed where Σr² sits after each cycle (not
 //!   kept) put 90–99 % of it within 8 voxels of the source at n = 255 for the first 8 cycles
