@@ -427,7 +427,14 @@
 //!   125; at n = 127 with V cycles, 84 of 108 were Picard cycles after the FAS stalled). For
 //!   FLD-LP on the point source they grew too (9 → 13; with ω = 1.2, 8 → 12) until the local
 //!   relaxation (above: 6, 6, 6, 7): the ≤ 25 % of issue 15 now holds on the point source
-//!   for CDA and FLD-LP, not on the cloud. On small vacuum clouds SOR is faster (CDA n =
+//!   for CDA and FLD-LP, not on the cloud. Local relaxation does not fix the cloud (2026-12-07,
+//!   ad-hoc builds, not kept; cycles to R̄/j̄ < 10⁻⁶): 8 extra sweeps twice per cycle on its
+//!   surface shell (the voxels within 2 of a vacuum/medium face, 2.4 % of the grid at 127³,
+//!   holding about 30 % of Σr²; the rest is spread over the cloud and the vacuum alike) took
+//!   CDA 8, 10, 12 → 8, 10, 11 cycles at n = 31, 63, 127. Boxes that follow the largest
+//!   residual (after every cycle a box of half-width 8 around the voxel with the largest |r|,
+//!   up to 8 boxes kept) took FLD-LP 14, 20, 43, 125 → 11, 19, 27, 106 cycles at n = 31…255,
+//!   but 107 s instead of 68–72 s at 255³: the D peak moves and multiplies as n grows. On small vacuum clouds SOR is faster (CDA n =
 //!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`; `multigrid_scaling` with SOR up
 //!   to n = 127: CDA on the cloud 0.4×, 0.7×, 1.6× at n = 31, 63, 127). A CDA work unit of multigrid costs about 3.9 SOR sweeps of
 //!   wall time (127³, α = 0.5: 0.40 s / 26.1 work units against SOR's 1.09 s / 277 sweeps;
