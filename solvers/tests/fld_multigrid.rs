@@ -297,6 +297,19 @@ fn method_names_select_multigrid() {
         let e = w(spec, v).err().map(|e| e.to_string()).unwrap_or_default();
         assert!(e.contains("smoother"), "{spec} smoother_omega={v}: {e:?}");
     }
+    // And the local relaxation's sweeps, an integer 0–64.
+    let l = |spec: &str, v: f64| parse_with(spec, &Params::none().with("local_sweeps", v));
+    assert!(l("cda:mg", 0.0).is_ok() && l("fld:lp:auto", 64.0).is_ok());
+    for (spec, v) in [
+        ("fld:lp", 8.0),
+        ("cda:mg", 1.5),
+        ("cda:mg", 65.0),
+        ("fld:mg", -1.0),
+        ("fld:mg", f64::INFINITY),
+    ] {
+        let e = l(spec, v).err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("local_sweeps"), "{spec} local_sweeps={v}: {e:?}");
+    }
 }
 
 /// The four media of the Krylov and smoother-ω tests: the Fig 4 cloud (24³) and white

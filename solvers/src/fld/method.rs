@@ -83,7 +83,12 @@ impl FldMethod {
             self.config.d_relaxation = t;
         }
         let (krylov, omega) = (params.get("krylov"), params.get("smoother_omega"));
-        let named = [("krylov", krylov), ("smoother_omega", omega)];
+        let local = params.get("local_sweeps");
+        let named = [
+            ("krylov", krylov),
+            ("smoother_omega", omega),
+            ("local_sweeps", local),
+        ];
         if let Some((name, value)) = named.into_iter().find_map(|(n, v)| Some((n, v?))) {
             let bad = |name, value, reason| SolverError::BadParameter {
                 name,
@@ -105,6 +110,16 @@ impl FldMethod {
             }
             if let Some(w) = omega {
                 mg.smoother_omega = w;
+            }
+            if let Some(l) = local {
+                if !(l.fract() == 0.0 && l >= 0.0 && l.is_finite()) {
+                    return Err(bad(
+                        "local_sweeps",
+                        l,
+                        "the local relaxation's sweeps are a non-negative integer",
+                    ));
+                }
+                mg.local_sweeps = l.min(usize::MAX as f64) as usize;
             }
             // The bounds are `MgConfig::validate`'s.
             mg.validate()?;
@@ -230,6 +245,11 @@ const PARAMS: &[(&str, &str)] = &[
         "smoother_omega",
         "multigrid (:mg, :auto) only: ω ∈ (0, 2) of the red-black smoother on every level; \
          default 1.2, 1 = Gauss–Seidel",
+    ),
+    (
+        "local_sweeps",
+        "multigrid (:mg, :auto, CPU) only: extra red-black sweeps 0–64, twice per cycle, in a \
+         box around each point-like source; default 8, 0 = none",
     ),
 ];
 
