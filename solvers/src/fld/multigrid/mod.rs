@@ -434,7 +434,12 @@
 //!   CDA 8, 10, 12 → 8, 10, 11 cycles at n = 31, 63, 127. Boxes that follow the largest
 //!   residual (after every cycle a box of half-width 8 around the voxel with the largest |r|,
 //!   up to 8 boxes kept) took FLD-LP 14, 20, 43, 125 → 11, 19, 27, 106 cycles at n = 31…255,
-//!   but 107 s instead of 68–72 s at 255³: the D peak moves and multiplies as n grows. On small vacuum clouds SOR is faster (CDA n =
+//!   but 107 s instead of 68–72 s at 255³: the D peak moves and multiplies as n grows.
+//!   Nor does a Jacobi-smoothed prolongation of the correction ((I − ωD⁻¹A)P with the
+//!   rediscretised coarse levels, ω = 0.67 or 1): CDA on the cloud 8, 10, 12 → 18, 41, 81
+//!   cycles. Transparent huge pages (the host's THP switched from `madvise` to `always` for
+//!   a test) made the 255³ CDA point source's time to the tolerance noisier, not reliably
+//!   shorter: 1.27–2.42 s against 1.44–1.83 s over six runs each. On small vacuum clouds SOR is faster (CDA n =
 //!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`; `multigrid_scaling` with SOR up
 //!   to n = 127: CDA on the cloud 0.4×, 0.7×, 1.6× at n = 31, 63, 127). A CDA work unit of multigrid costs about 3.9 SOR sweeps of
 //!   wall time (127³, α = 0.5: 0.40 s / 26.1 work units against SOR's 1.09 s / 277 sweeps;
