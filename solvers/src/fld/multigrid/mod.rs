@@ -405,7 +405,12 @@
 //!   boxes cost 8 sweeps × 2 × 1.6 % of the grid per cycle plus their D, which is why CDA
 //!   gains less than its cycle: 4 sweeps and radius 0.5 took 8, 9 cycles at n = 127, 255
 //!   (0.90, 7.6 s), 8 sweeps and radius 0.25 7, 8 (0.87, 7.3 s), 16 and 0.25 7, 8 (0.77,
-//!   7.3 s): within the host's noise of the default. Media without a voxel holding 1 % of
+//!   7.3 s): within the host's noise of the default. CDA alone would
+//!   do with fewer (point source, albedo 0.5, two alternating runs each, seconds to the
+//!   tolerance, 8 → 2 sweeps): 127³ 0.186 → 0.169–0.179 s, 63³ 0.026 → 0.023 s, the same 4
+//!   cycles, but 5 instead of 4 at 31³; at 255³ and albedo 0.1, 4 and 2 sweeps took 1.27–1.32
+//!   and 1.24–1.33 s against 1.41–1.42 s. One default for every limiter is kept: FLD-LP
+//!   needs the 8, and CDA's gain (4–12 %) is smaller than the host's noise between runs. Media without a voxel holding 1 % of
 //!   the emission (the Fig 4 clouds of `multigrid_scaling`) get no box and run exactly as
 //!   before. The 18³ datasets of `convergence_check` do get boxes (tolerance 10⁻⁴, f64,
 //!   cycles before → after): nebula CDA 5 → 4, every FLD limiter 9 → 8; emissive_cloud CDA
