@@ -271,44 +271,60 @@ fn method_names_select_multigrid() {
         assert_eq!(solvers::method::parse(spec).unwrap().name(), name);
     }
     assert!(solvers::method::parse("fld:lp:mg:auto").is_err());
-    // The Krylov depth is a multigrid parameter: an integer 0–16, refused without `:mg`.
+    // The multigrid parameters, each refused without `:mg`/`:auto` and out of its range
+    // with an error naming it: the Krylov depth (an integer 0–16), the smoother's ω (in
+    // (0, 2)) and the local relaxation's sweeps (an integer 0–64).
     use solvers::method::{Params, parse_with};
-    let k = |spec: &str, v: f64| parse_with(spec, &Params::none().with("krylov", v));
-    assert!(k("cda:mg", 0.0).is_ok() && k("fld:lp:mg", 16.0).is_ok());
-    assert!(k("cda:auto", 2.0).is_ok());
-    for (spec, v) in [
-        ("cda", 3.0),
-        ("cda:mg", 2.5),
-        ("cda:mg", 17.0),
-        ("fld:mg", -1.0),
-    ] {
-        let e = k(spec, v).err().map(|e| e.to_string()).unwrap_or_default();
-        assert!(e.contains("krylov"), "{spec} krylov={v}: {e:?}");
-    }
-    // So is the smoother's ω, in (0, 2).
-    let w = |spec: &str, v: f64| parse_with(spec, &Params::none().with("smoother_omega", v));
-    assert!(w("cda:mg", 1.0).is_ok() && w("fld:lp:auto", 1.9).is_ok());
-    for (spec, v) in [
-        ("fld:lp", 1.2),
-        ("cda:mg", 0.0),
-        ("cda:mg", 2.0),
-        ("fld:mg", f64::NAN),
-    ] {
-        let e = w(spec, v).err().map(|e| e.to_string()).unwrap_or_default();
-        assert!(e.contains("smoother"), "{spec} smoother_omega={v}: {e:?}");
-    }
-    // And the local relaxation's sweeps, an integer 0–64.
-    let l = |spec: &str, v: f64| parse_with(spec, &Params::none().with("local_sweeps", v));
-    assert!(l("cda:mg", 0.0).is_ok() && l("fld:lp:auto", 64.0).is_ok());
-    for (spec, v) in [
-        ("fld:lp", 8.0),
-        ("cda:mg", 1.5),
-        ("cda:mg", 65.0),
-        ("fld:mg", -1.0),
-        ("fld:mg", f64::INFINITY),
-    ] {
-        let e = l(spec, v).err().map(|e| e.to_string()).unwrap_or_default();
-        assert!(e.contains("local_sweeps"), "{spec} local_sweeps={v}: {e:?}");
+    // (parameter, what its errors name, accepted (method, value), refused ones)
+    type Case<'a> = (&'a str, &'a str, [(&'a str, f64); 3], &'a [(&'a str, f64)]);
+    let cases: [Case; 3] = [
+        (
+            "krylov",
+            "krylov",
+            [("cda:mg", 0.0), ("fld:lp:mg", 16.0), ("cda:auto", 2.0)],
+            &[
+                ("cda", 3.0),
+                ("cda:mg", 2.5),
+                ("cda:mg", 17.0),
+                ("fld:mg", -1.0),
+            ],
+        ),
+        (
+            "smoother_omega",
+            "smoother",
+            [("cda:mg", 1.0), ("fld:lp:auto", 1.9), ("cda:mg", 1.2)],
+            &[
+                ("fld:lp", 1.2),
+                ("cda:mg", 0.0),
+                ("cda:mg", 2.0),
+                ("fld:mg", f64::NAN),
+            ],
+        ),
+        (
+            "local_sweeps",
+            "local_sweeps",
+            [("cda:mg", 0.0), ("fld:lp:auto", 64.0), ("fld:mg", 8.0)],
+            &[
+                ("fld:lp", 8.0),
+                ("cda:mg", 1.5),
+                ("cda:mg", 65.0),
+                ("fld:mg", -1.0),
+                ("fld:mg", f64::INFINITY),
+            ],
+        ),
+    ];
+    for (param, named, good, bad) in cases {
+        let with = |spec: &str, v: f64| parse_with(spec, &Params::none().with(param, v));
+        for (spec, v) in good {
+            assert!(with(spec, v).is_ok(), "{spec} {param}={v}");
+        }
+        for &(spec, v) in bad {
+            let e = with(spec, v)
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_default();
+            assert!(e.contains(named), "{spec} {param}={v}: {e:?}");
+        }
     }
 }
 

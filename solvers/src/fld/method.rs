@@ -98,28 +98,27 @@ impl FldMethod {
             let (Solver::Multigrid(mg) | Solver::Auto(mg)) = &mut self.solver else {
                 return Err(bad(name, value, "a multigrid setting (add :mg or :auto)"));
             };
-            if let Some(k) = krylov {
-                if !(k.fract() == 0.0 && k >= 0.0) {
-                    return Err(bad(
-                        "krylov",
-                        k,
-                        "the Krylov depth is a non-negative integer",
-                    ));
+            // A count: a finite non-negative integer (the cast is then exact up to the
+            // bounds `MgConfig::validate` checks).
+            let count = |name, v: f64, reason| {
+                if v.is_finite() && v.fract() == 0.0 && v >= 0.0 {
+                    Ok(v as usize)
+                } else {
+                    Err(bad(name, v, reason))
                 }
-                mg.krylov = k as usize;
+            };
+            if let Some(k) = krylov {
+                mg.krylov = count("krylov", k, "the Krylov depth is a non-negative integer")?;
             }
             if let Some(w) = omega {
                 mg.smoother_omega = w;
             }
             if let Some(l) = local {
-                if !(l.fract() == 0.0 && l >= 0.0 && l.is_finite()) {
-                    return Err(bad(
-                        "local_sweeps",
-                        l,
-                        "the local relaxation's sweeps are a non-negative integer",
-                    ));
-                }
-                mg.local_sweeps = l.min(usize::MAX as f64) as usize;
+                mg.local_sweeps = count(
+                    "local_sweeps",
+                    l,
+                    "the local relaxation's sweeps are a non-negative integer",
+                )?;
             }
             // The bounds are `MgConfig::validate`'s.
             mg.validate()?;

@@ -53,28 +53,27 @@ pub(super) fn source_boxes(g: &Grid, rhs: &[f64], sig: &[f64], radius: f64) -> V
     if !total.is_finite() || total <= 0.0 || g.n.iter().any(|&n| n < 5) {
         return Vec::new();
     }
-    let inside = |i: usize, d: usize| i >= 2 && i + 3 <= g.n[d];
-    let mut points: Vec<(f64, [usize; 3])> = g
-        .interior()
-        .filter_map(|p| {
-            let c = g.coords(p);
-            let share = rhs[p] / total;
-            (share >= POINT_SHARE && (0..3).all(|d| inside(c[d], d))).then_some((share, c))
-        })
+    // Only the few voxels over the share are located (no pass over every voxel's coordinates).
+    let inside = |c: [usize; 3]| (0..3).all(|d| c[d] >= 2 && c[d] + 3 <= g.n[d]);
+    let mut points: Vec<(f64, [usize; 3])> = rhs
+        .iter()
+        .enumerate()
+        .filter(|&(_, &x)| x / total >= POINT_SHARE)
+        .map(|(p, &x)| (x / total, g.coords(p)))
+        .filter(|&(_, c)| inside(c))
         .collect();
     points.sort_by(|a, b| b.0.total_cmp(&a.0));
     points.truncate(MAX_BOXES);
     points
         .into_iter()
         .map(|(_, c)| {
-            let s = sig[g.index(c[0], c[1], c[2])];
-            let r = (radius / (s * g.dl)).ceil();
+            // ⌈τ₀/(σΔl)⌉ voxels, at least 1 and at most a quarter of the axis (a source in
+            // vacuum, σΔl → 0, gets the cap).
+            let r = (radius / (sig[g.index(c[0], c[1], c[2])] * g.dl)).ceil();
             let half = [0, 1, 2].map(|d| {
                 let cap = (g.n[d] / 4).max(1);
-                if r.is_finite() && r >= 1.0 {
-                    (r as usize).min(cap)
-                } else if r.is_finite() {
-                    1
+                if r.is_finite() {
+                    (r.max(1.0) as usize).min(cap)
                 } else {
                     cap
                 }
@@ -102,7 +101,8 @@ pub(super) struct Fields<'a> {
 }
 
 /// `sweeps` red-black sweeps over box `b` of φ (natural layout, updated in place); the rest
-/// of φ is the boundary data. D is recomputed from φ before each colour.
+/// of φ is the boundary data. D is recomputed from φ before each colour (FLD limiters; a
+/// constant limiter's fixed D is read as it is).
 pub(super) fn relax(f: &Fields<'_>, b: &LocalBox, phi: &mut [f64], sweeps: usize) {
     let g = f.grid;
     let [nx, ny, _] = g.n;
@@ -110,46 +110,48 @@ pub(super) fn relax(f: &Fields<'_>, b: &LocalBox, phi: &mut [f64], sweeps: usize
     // D over the box grown by one (every neighbour a box voxel couples to), box-local.
     let e = b.grown(1);
     let ew = [0, 1, 2].map(|d| e.hi[d] + 1 - e.lo[d]);
-    let mut dloc = vec![0.0; e.len()];
+    let mut dloc = match f.d_fixed {
+        Some(_) => Vec::new(),
+        None => vec![0.0; e.len()],
+    };
     let bw = [0, 1, 2].map(|d| b.hi[d] + 1 - b.lo[d]);
     let mut upd = vec![0.0; b.len()];
     let dl2 = g.dl * g.dl;
     for _ in 0..sweeps {
         for colour in 0..2 {
-            fill_d(f, &e, ew, phi, &mut dloc);
-            let dat = |i: usize, j: usize, k: usize| {
-                dloc[((k - e.lo[2]) * ew[1] + (j - e.lo[1])) * ew[0] + (i - e.lo[0])]
+            if f.d_fixed.is_none() {
+                fill_d(f, &e, ew, phi, &mut dloc);
+            }
+            let dat = |i: usize, j: usize, k: usize| match f.d_fixed {
+                Some(d) => d[g.index(i, j, k)],
+                None => dloc[((k - e.lo[2]) * ew[1] + (j - e.lo[1])) * ew[0] + (i - e.lo[0])],
             };
             let phi_r: &[f64] = phi;
             upd.par_chunks_mut(bw[0] * bw[1])
                 .enumerate()
                 .for_each(|(kk, slab)| {
-                    let k = b.lo[2] + kk;
-                    for jj in 0..bw[1] {
-                        let j = b.lo[1] + jj;
-                        let first = b.lo[0] + ((b.lo[0] + j + k + colour) & 1);
-                        for i in (first..=b.hi[0]).step_by(2) {
-                            let n = g.index(i, j, k);
-                            let dp = dat(i, j, k);
-                            let nb = [
-                                (n - 1, dat(i - 1, j, k)),
-                                (n + 1, dat(i + 1, j, k)),
-                                (n - nx, dat(i, j - 1, k)),
-                                (n + nx, dat(i, j + 1, k)),
-                                (n - plane, dat(i, j, k - 1)),
-                                (n + plane, dat(i, j, k + 1)),
-                            ];
-                            let (mut num, mut den) = (0.0, f.absorb[n]);
-                            for (q, dq) in nb {
-                                let c = 0.5 * (dp + dq);
-                                num += c * phi_r[q];
-                                den += c;
-                            }
-                            let new = (f.rhs[n] * dl2 + num) / den;
-                            let x = (1.0 - f.omega) * phi_r[n] + f.omega * new;
-                            slab[jj * bw[0] + (i - b.lo[0])] = x.max(0.0);
+                    for_colour(b, kk, colour, |j, i, at| {
+                        let k = b.lo[2] + kk;
+                        let n = g.index(i, j, k);
+                        let dp = dat(i, j, k);
+                        let nb = [
+                            (n - 1, dat(i - 1, j, k)),
+                            (n + 1, dat(i + 1, j, k)),
+                            (n - nx, dat(i, j - 1, k)),
+                            (n + nx, dat(i, j + 1, k)),
+                            (n - plane, dat(i, j, k - 1)),
+                            (n + plane, dat(i, j, k + 1)),
+                        ];
+                        let (mut num, mut den) = (0.0, f.absorb[n]);
+                        for (q, dq) in nb {
+                            let c = 0.5 * (dp + dq);
+                            num += c * phi_r[q];
+                            den += c;
                         }
-                    }
+                        let new = (f.rhs[n] * dl2 + num) / den;
+                        let x = (1.0 - f.omega) * phi_r[n] + f.omega * new;
+                        slab[at] = x.max(0.0);
+                    });
                 });
             // Write the colour's new values back, plane by plane.
             phi.par_chunks_mut(plane)
@@ -158,21 +160,27 @@ pub(super) fn relax(f: &Fields<'_>, b: &LocalBox, phi: &mut [f64], sweeps: usize
                 .zip(upd.par_chunks(bw[0] * bw[1]))
                 .enumerate()
                 .for_each(|(kk, (pl, slab))| {
-                    let k = b.lo[2] + kk;
-                    for jj in 0..bw[1] {
-                        let j = b.lo[1] + jj;
-                        let first = b.lo[0] + ((b.lo[0] + j + k + colour) & 1);
-                        for i in (first..=b.hi[0]).step_by(2) {
-                            pl[j * nx + i] = slab[jj * bw[0] + (i - b.lo[0])];
-                        }
-                    }
+                    for_colour(b, kk, colour, |j, i, at| pl[j * nx + i] = slab[at]);
                 });
         }
     }
 }
 
-/// D over box `e` (box-local layout, widths `ew`) at φ: the fixed D of a constant limiter,
-/// else F(R)/σ with centred differences, as the multigrid's residual evaluates it inside.
+/// Calls `f(j, i, at)` for every voxel of colour `colour` ((i + j + k) mod 2) in plane `kk`
+/// of box `b` (k = b.lo[2] + kk), with `at` its index in the box's plane.
+fn for_colour(b: &LocalBox, kk: usize, colour: usize, mut f: impl FnMut(usize, usize, usize)) {
+    let k = b.lo[2] + kk;
+    let w = b.hi[0] + 1 - b.lo[0];
+    for j in b.lo[1]..=b.hi[1] {
+        let first = b.lo[0] + ((b.lo[0] + j + k + colour) & 1);
+        for i in (first..=b.hi[0]).step_by(2) {
+            f(j, i, (j - b.lo[1]) * w + (i - b.lo[0]));
+        }
+    }
+}
+
+/// FLD's D = F(R)/σ over box `e` (box-local layout, widths `ew`) at φ, with centred
+/// differences, as the multigrid's residual evaluates it inside.
 fn fill_d(f: &Fields<'_>, e: &LocalBox, ew: [usize; 3], phi: &[f64], out: &mut [f64]) {
     let g = f.grid;
     let [nx, ny, _] = g.n;
@@ -189,19 +197,13 @@ fn fill_d(f: &Fields<'_>, e: &LocalBox, ew: [usize; 3], phi: &[f64], out: &mut [
                 for ii in 0..ew[0] {
                     let n = g.index(e.lo[0] + ii, j, k);
                     let s = f.sig[n];
-                    let x = match f.d_fixed {
-                        Some(d) => d[n],
-                        None => {
-                            let gx = (phi[n + 1] - phi[n - 1]) * inv_2dl;
-                            let gy = (phi[n + nx] - phi[n - nx]) * inv_2dl;
-                            let gz = (phi[n + plane] - phi[n - plane]) * inv_2dl;
-                            let r = (gx * gx + gy * gy + gz * gz).sqrt().max(floor)
-                                / (s * phi[n]).max(floor);
-                            let (num, den) = limiter.fraction(r);
-                            num / (den * s)
-                        }
-                    };
-                    slab[jj * ew[0] + ii] = x;
+                    let gx = (phi[n + 1] - phi[n - 1]) * inv_2dl;
+                    let gy = (phi[n + nx] - phi[n - nx]) * inv_2dl;
+                    let gz = (phi[n + plane] - phi[n - plane]) * inv_2dl;
+                    let r =
+                        (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (s * phi[n]).max(floor);
+                    let (num, den) = limiter.fraction(r);
+                    slab[jj * ew[0] + ii] = num / (den * s);
                 }
             }
         });

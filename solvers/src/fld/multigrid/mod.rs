@@ -1290,10 +1290,10 @@ impl<T: Real> CpuMultigrid<T> {
     }
 
     /// [`MgConfig::local_sweeps`] sweeps over every local box of the finest level, on φ in
-    /// natural layout (the caller hands it to the smoother); returns the boxes relaxed.
-    fn relax_locally(&mut self, phi: &mut [f64]) -> Vec<local::LocalBox> {
+    /// natural layout (the caller hands it to the smoother).
+    fn relax_locally(&mut self, phi: &mut [f64]) {
         if self.local.is_empty() {
-            return Vec::new();
+            return;
         }
         let lv = &self.levels[0];
         let f = local::Fields {
@@ -1312,7 +1312,6 @@ impl<T: Real> CpuMultigrid<T> {
         }
         let voxels: usize = self.local.iter().map(local::LocalBox::len).sum();
         self.work += (sweeps * voxels) as f64 / lv.grid.len() as f64;
-        self.local.clone()
     }
 
     /// Hands φ (natural layout, a pooled vector) to level `l`'s smoother with D recomputed
@@ -1375,10 +1374,10 @@ impl<T: Real> CpuMultigrid<T> {
         self.cycle_at(0, self.mg.cycle);
         let mut phi = self.take(0);
         self.levels[0].fld.mg_phi_into(&mut phi);
-        let relaxed = self.relax_locally(&mut phi);
+        self.relax_locally(&mut phi);
         let d = self.fresh_d(0, &phi);
         // The smoother's state follows the relaxed boxes (φ, and D one voxel around them).
-        for b in relaxed {
+        for b in &self.local {
             let fl = &mut self.levels[0].fld;
             fl.mg_set_box(0, &phi, b.lo, b.hi);
             if let Some(d) = &d {
