@@ -383,16 +383,16 @@
 //!   optical half-width [`MgConfig::local_radius`] = 0.5; `multigrid/local.rs`; 2026-12-07, 2-vCPU
 //!   AMD EPYC Zen 5, 32 MiB L3).** *Why*: FLD-LP's cycles on the point source grew with n (8,
 //!   9, 10, 12 at n = 31…255), and a build that printed where Σr² sits after each cycle (not
-//!   kept) put 90–99 % of it within 8 voxels of the source at n = 255 for the first 8 cycles
+//!   kept) put 91–99.9 % of it within 8 voxels of the source at n = 255 for the first 8 cycles
 //!   (the one-voxel source holds j = 1/Δl³; R ≈ 1/(σr) near it grows as Δl shrinks). Brandt's
 //!   remedy for such singularities is extra relaxation in a neighbourhood of fixed physical
 //!   size. Measured on an ad-hoc driver (`point_source` medium, τ = 4, albedo 0.5, cycles to
 //!   R̄/j̄ < 10⁻⁶ at n = 31, 63, 127, 255), FLD-LP: none 8, 9, 10, 12; a box of 8 voxels and 8
 //!   sweeps after the coarse-grid correction 6 (n = 63), 8 (127); also after the
-//!   post-smoothing 6, 6, 7, 9 (a fixed box in voxels does not keep up with n: at n = 255 the
+//!   post-smoothing 5, 6, 7, 9 (a fixed box in voxels does not keep up with n: at n = 255 the
 //!   residual then sat 17–32 voxels out, at the box's edge); a box of n/8 voxels (optical
 //!   half-width 0.5) at both places 6, 6, 7, 7 and after the correction only 6, 6, 7, 9;
-//!   before the pre-smoothing instead: worse (n = 63: 9, first residual 2.2); selecting the
+//!   before the pre-smoothing instead: no better (n = 63: 9, first residual 2.2; n = 127: 11); selecting the
 //!   voxels with R > 4 instead of a box (the Dirichlet layer's neighbourhood, where φ → 0,
 //!   is selected too) 6, 7, 7, 8. As built (the box ⌈τ₀/(σΔl)⌉ = 4, 8, 16, 32 voxels, at both
 //!   places, D recomputed before each colour; before each sweep instead, the 255³ solve stopped
@@ -410,7 +410,7 @@
 //!   tolerance, 8 → 2 sweeps): 127³ 0.186 → 0.169–0.179 s, 63³ 0.026 → 0.023 s, the same 4
 //!   cycles, but 5 instead of 4 at 31³; at 255³ and albedo 0.1, 4 and 2 sweeps took 1.27–1.32
 //!   and 1.24–1.33 s against 1.41–1.42 s. One default for every limiter is kept: FLD-LP
-//!   needs the 8, and CDA's gain (4–12 %) is smaller than the host's noise between runs. Media without a voxel holding 1 % of
+//!   needs the 8, and CDA's gain (4–13 %) is smaller than the host's noise between runs. Media without a voxel holding 1 % of
 //!   the emission (the Fig 4 clouds of `multigrid_scaling`) get no box and run exactly as
 //!   before. The 18³ datasets of `convergence_check` do get boxes (tolerance 10⁻⁴, f64,
 //!   cycles before → after): nebula CDA 5 → 4, every FLD limiter 9 → 8; emissive_cloud CDA
@@ -434,15 +434,17 @@
 //!   relaxation (above: 6, 6, 6, 7): the ≤ 25 % of issue 15 now holds on the point source
 //!   for CDA and FLD-LP, not on the cloud. Local relaxation does not fix the cloud (2026-12-07,
 //!   ad-hoc builds, not kept; cycles to R̄/j̄ < 10⁻⁶): 8 extra sweeps twice per cycle on its
-//!   surface shell (the voxels within 2 of a vacuum/medium face, 2.4 % of the grid at 127³,
-//!   holding about 30 % of Σr²; the rest is spread over the cloud and the vacuum alike) took
+//!   surface shell (the voxels within 2 of a vacuum/medium face: 82 432, 4.0 % of the grid at
+//!   127³; the voxels on either side of a face held 25–33 % of Σr² after each cycle, the
+//!   vacuum 36–43 % and the cloud's inside 25–37 %) took
 //!   CDA 8, 10, 12 → 8, 10, 11 cycles at n = 31, 63, 127. Boxes that follow the largest
 //!   residual (after every cycle a box of half-width 8 around the voxel with the largest |r|,
-//!   up to 8 boxes kept) took FLD-LP 14, 20, 43, 125 → 11, 19, 27, 106 cycles at n = 31…255,
-//!   but 107 s instead of 68–72 s at 255³: the D peak moves and multiplies as n grows.
+//!   up to 8 boxes kept; the residual-threshold sets of the D-peak bullet below were the
+//!   earlier form of this) took FLD-LP 14, 20, 43, 125 → 11, 19, 27, 106 cycles at n =
+//!   31…255, but 107 s instead of 68–72 s at 255³: the D peak moves and multiplies as n grows.
 //!   Nor does a Jacobi-smoothed prolongation of the correction ((I − ωD⁻¹A)P with the
-//!   rediscretised coarse levels, ω = 0.67 or 1): CDA on the cloud 8, 10, 12 → 18, 41, 81
-//!   cycles. Transparent huge pages (the host's THP switched from `madvise` to `always` for
+//!   rediscretised coarse levels, ω = 0.67 or 1): CDA on the cloud 8, 10, 12 → 18, 41–42,
+//!   80–81 cycles. Transparent huge pages (the host's THP switched from `madvise` to `always` for
 //!   a test) made the 255³ CDA point source's time to the tolerance noisier, not reliably
 //!   shorter: 1.27–2.42 s against 1.44–1.83 s over six runs each. On small vacuum clouds SOR is faster (CDA n =
 //!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`; `multigrid_scaling` with SOR up
