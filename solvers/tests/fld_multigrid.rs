@@ -374,7 +374,8 @@ fn compare_cycles(a: &MgConfig, b: &MgConfig, what: &str, ratio: [f64; 4]) {
 /// white noise with 30 % vacuum) the accelerated one needs at most 75 % (cloud) and 60 %
 /// (noise) of its cycles, on the homogeneous point source no more, and both reach the same φ.
 /// Measured (2026-12-07, F cycles, smoother ω = 1.2): cloud 14 → 10 cycles, noise 37 → 17,
-/// point source CDA 7 → 6 and FLD-LP 10 → 8; rel. L2 between the two 5.0·10⁻¹⁰ at most.
+/// point source CDA 7 → 6 and FLD-LP 10 → 8 (8 → 7 with the local relaxation around the
+/// source, 2026-12-07, later); rel. L2 between the two 5.0·10⁻¹⁰ at most.
 /// With ω = 1 (Gauss–Seidel, the default until 2026-12-07): 20 → 13, 52 → 19, 9 → 7, 11 → 9.
 #[test]
 fn krylov_acceleration_cuts_cycles_where_vacuum_slows_the_plain_cycle() {
@@ -394,7 +395,7 @@ fn krylov_acceleration_cuts_cycles_where_vacuum_slows_the_plain_cycle() {
 /// smoothing (ω = 1), both Krylov-accelerated: over-relaxed red-black smoothing needs at most
 /// 80 % (cloud) and 90 % (noise) of the cycles on the vacuum media and no more on the point
 /// source, to the same φ. Measured (2026-12-07): cloud 13 → 10, noise 19 → 17, point source
-/// CDA 7 → 6, FLD-LP 9 → 8.
+/// CDA 7 → 6, FLD-LP 9 → 8 (8 → 7 with the local relaxation around the source).
 #[test]
 fn over_relaxed_smoothing_cuts_cycles() {
     let gauss_seidel = MgConfig {
