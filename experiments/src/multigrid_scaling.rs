@@ -23,10 +23,11 @@
 //!
 //! **Outputs** (`results/multigrid_scaling/`):
 //! * `steps.csv`: `problem,method,n,solver,steps,work_units,seconds,setup_seconds,stop,
-//!   final_residual,backend,seconds_to_tolerance,d_max,d_median` — steps are SOR iterations or multigrid
+//!   final_residual,backend,seconds_to_tolerance,steps_to_tolerance,d_max,d_median` — steps are SOR iterations or multigrid
 //!   cycles; work units count fine red-black sweeps (a smoothing sweep on level ℓ counts 8^−ℓ;
 //!   SOR: its iterations); `seconds_to_tolerance`: until R̄/j̄ first fell below the tolerance
-//!   (multigrid's stop also waits for its error estimate; empty on the GPU); `d_max` and
+//!   (multigrid's stop also waits for its error estimate; empty on the GPU);
+//!   `steps_to_tolerance`: the step after which R̄/j̄ first fell below it; `d_max` and
 //!   `d_median`: the largest and the median D = F(R)/σ over the interior voxels at the
 //!   solution ([`solvers::fld::multigrid::diffusion_field`]), the coefficient contrast the
 //!   solvers face;
@@ -108,6 +109,10 @@ pub struct Args {
     /// none).
     #[arg(long, default_value_t = solvers::fld::multigrid::MgConfig::default().local_sweeps)]
     pub local_sweeps: usize,
+    /// Start multigrid from a full-multigrid (nested-iteration) guess on the CPU
+    /// (`MgConfig::full_multigrid`; `false` = from φ = 0 as before 2026-12-07).
+    #[arg(long, action = clap::ArgAction::Set, default_value_t = solvers::fld::multigrid::MgConfig::default().full_multigrid)]
+    pub full_multigrid: bool,
 }
 
 /// One row of `steps.csv`.
@@ -139,6 +144,10 @@ pub struct StepRow {
     /// and on the GPU): SOR stops there, multigrid's stop also waits for its error estimate
     /// (`solvers::fld::FldTrace::seconds_to_tolerance`).
     pub seconds_to_tolerance: Option<f64>,
+    /// The step (SOR iteration or multigrid cycle, counting from 1) after which R̄/j̄ first
+    /// fell below the tolerance (empty where it never did): issue 15's "cycles to R̄/j̄ <
+    /// 10⁻⁶"; `steps` also counts the cycles multigrid's stop waits for its error estimate.
+    pub steps_to_tolerance: Option<usize>,
     /// The largest D = F(R)/σ over the interior voxels at the solution.
     pub d_max: f64,
     /// The median D over the interior voxels at the solution.
@@ -249,6 +258,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
         krylov: args.krylov,
         smoother_omega: args.smoother_omega,
         local_sweeps: args.local_sweeps,
+        full_multigrid: args.full_multigrid,
         ..Default::default()
     };
     mg_config
@@ -269,10 +279,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
         "limiters": args.limiters.iter().map(|l| l.to_string()).collect::<Vec<_>>(),
         "tolerance": args.tolerance, "albedo": args.albedo, "max_cycles": args.max_cycles,
         "max_iterations": args.max_iterations, "seed": args.seed,
-        "multigrid": "FAS F(2,2), solvers::fld::multigrid::MgConfig::default() with --krylov, --smoother-omega and --local-sweeps (CPU; the GPU runs plain FAS cycles)",
+        "multigrid": "FAS F(2,2), solvers::fld::multigrid::MgConfig::default() with --krylov, --smoother-omega, --local-sweeps and --full-multigrid (CPU; the GPU runs plain FAS cycles)",
         "krylov": args.krylov,
         "smoother_omega": args.smoother_omega,
         "local_sweeps": args.local_sweeps,
+        "full_multigrid": args.full_multigrid,
         "local_radius": mg_config.local_radius,
         "sor_omega": "FldConfig::poisson_optimal_omega(n)",
         "precision": "cpu f64, gpu f32",
@@ -371,6 +382,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
             final_residual: sol.final_residual(),
             backend: bk,
             seconds_to_tolerance: sol.trace.seconds_to_tolerance,
+            steps_to_tolerance: sol
+                .residuals()
+                .iter()
+                .position(|&r| r < args.tolerance)
+                .map(|i| i + 1),
             d_max,
             d_median,
         });
@@ -625,6 +641,7 @@ const STEP_COLUMNS: &[&str] = &[
     "final_residual",
     "backend",
     "seconds_to_tolerance",
+    "steps_to_tolerance",
     "d_max",
     "d_median",
 ];
@@ -675,8 +692,10 @@ impl Experiment for MultigridScaling {
         let mut out = String::from(
             "CPU f64 (GPU: f32), zero boundary, stop at R̄/j̄ below the run's tolerance (`meta.json`). Multigrid: FAS F(2,2) \
              (`solvers::fld::multigrid`; CPU: Krylov-accelerated, depth `krylov` in `meta.json`; red-black smoothing at ω = `smoother_omega`; `local_sweeps` extra sweeps in a box of optical half-width `local_radius` around a point-like source); SOR: FLD Algorithm 1 at the Poisson-optimal ω(n). Steps are SOR \
-             iterations or multigrid cycles; work units count fine red-black sweeps. Spread: max/min − 1 of the \
-             multigrid cycles over the n that converged (grid independence: issue 15 asks ≤ 25\u{a0}%).\n\n",
+             iterations or multigrid cycles, [k] the step after which R̄/j̄ first fell below the tolerance \
+             (multigrid's stop also waits for its error estimate); work units count fine red-black sweeps. \
+             Spread: max/min − 1 of the multigrid cycles over the n that converged, of the steps and of k \
+             (grid independence: issue 15 asks ≤ 25\u{a0}% of the cycles to R̄/j̄ < 10⁻⁶, k).\n\n",
         );
         let ns = t.distinct("n");
         let mut rows = Vec::new();
@@ -704,33 +723,40 @@ impl Experiment for MultigridScaling {
                 continue;
             }
             let mut cells = vec![p.clone(), format!("`{m}`"), format!("{solver} ({b})")];
-            let mut conv = Vec::new();
+            let (mut conv, mut to_tol) = (Vec::new(), Vec::new());
             for n in &ns {
                 cells.push(match sel.iter().find(|r| r.get("n") == n) {
                     Some(r) if r.get("stop") == "converged" => {
                         conv.push(r.num("steps"));
-                        format!("{} ({} s)", r.get("steps"), r.fixed("seconds", 2))
+                        to_tol.push(r.num("steps_to_tolerance"));
+                        format!(
+                            "{} [{}] ({} s)",
+                            r.get("steps"),
+                            r.get("steps_to_tolerance"),
+                            r.fixed("seconds", 2)
+                        )
                     }
                     Some(r) => format!("{} {}", r.get("steps"), r.get("stop")),
                     None => "–".to_string(),
                 });
             }
-            let spread = match (
-                conv.iter().copied().reduce(f64::min),
-                conv.iter().copied().reduce(f64::max),
+            let spread = |v: &[f64]| match (
+                v.iter().copied().reduce(f64::min),
+                v.iter().copied().reduce(f64::max),
             ) {
-                (Some(lo), Some(hi)) if solver == "multigrid" => {
+                (Some(lo), Some(hi)) if solver == "multigrid" && lo > 0.0 => {
                     format!("{:.0} %", 100.0 * (hi / lo - 1.0))
                 }
                 _ => "–".to_string(),
             };
-            cells.push(spread);
+            cells.push(spread(&conv));
+            cells.push(spread(&to_tol));
             rows.push(cells);
         }
         out.push_str(&by_n(
             &["problem", "method", "solver"],
             ns.as_slice(),
-            &["spread"],
+            &["spread", "spread [k]"],
             rows,
         ));
         out.push('\n');
