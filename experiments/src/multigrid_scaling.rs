@@ -23,11 +23,12 @@
 //!
 //! **Outputs** (`results/multigrid_scaling/`):
 //! * `steps.csv`: `problem,method,n,solver,steps,work_units,seconds,setup_seconds,stop,
-//!   final_residual,backend,seconds_to_tolerance,steps_to_tolerance,d_max,d_median` — steps are SOR iterations or multigrid
+//!   final_residual,backend,seconds_to_tolerance,steps_to_tolerance,mean_rate,d_max,d_median` — steps are SOR iterations or multigrid
 //!   cycles; work units count fine red-black sweeps (a smoothing sweep on level ℓ counts 8^−ℓ;
 //!   SOR: its iterations); `seconds_to_tolerance`: until R̄/j̄ first fell below the tolerance
 //!   (multigrid's stop also waits for its error estimate; empty on the GPU);
-//!   `steps_to_tolerance`: the step after which R̄/j̄ first fell below it; `d_max` and
+//!   `steps_to_tolerance`: the step after which R̄/j̄ first fell below it; `mean_rate`: the
+//!   mean reduction of R̄/j̄ per step from the first step to that one; `d_max` and
 //!   `d_median`: the largest and the median D = F(R)/σ over the interior voxels at the
 //!   solution ([`solvers::fld::multigrid::diffusion_field`]), the coefficient contrast the
 //!   solvers face;
@@ -148,6 +149,11 @@ pub struct StepRow {
     /// fell below the tolerance (empty where it never did): issue 15's "cycles to R̄/j̄ <
     /// 10⁻⁶"; `steps` also counts the cycles multigrid's stop waits for its error estimate.
     pub steps_to_tolerance: Option<usize>,
+    /// The mean reduction of R̄/j̄ per step from the first step to step
+    /// `steps_to_tolerance`, (r_k / r_1)^(1/(k − 1)) (empty for k < 2): the rate whose
+    /// independence of n grid-independent convergence means, free of the rounding of k to a
+    /// whole step (with 2–4 cycles one cycle is 25–50 %).
+    pub mean_rate: Option<f64>,
     /// The largest D = F(R)/σ over the interior voxels at the solution.
     pub d_max: f64,
     /// The median D over the interior voxels at the solution.
@@ -368,6 +374,11 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
             }
         }
         out.timing(format!("{problem}/{method}/n{n}/{name}/{bk}"), sol.seconds);
+        let res = sol.residuals();
+        let steps_to_tolerance = res.iter().position(|&r| r < args.tolerance).map(|i| i + 1);
+        let mean_rate = steps_to_tolerance
+            .filter(|&k| k >= 2 && res[0] > 0.0)
+            .map(|k| (res[k - 1] / res[0]).powf(1.0 / (k - 1) as f64));
         let (d_max, d_median) = d_stats(&m, &sol.phi, &cfg)?;
         rows.push(StepRow {
             problem: problem.clone(),
@@ -382,11 +393,8 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
             final_residual: sol.final_residual(),
             backend: bk,
             seconds_to_tolerance: sol.trace.seconds_to_tolerance,
-            steps_to_tolerance: sol
-                .residuals()
-                .iter()
-                .position(|&r| r < args.tolerance)
-                .map(|i| i + 1),
+            steps_to_tolerance,
+            mean_rate,
             d_max,
             d_median,
         });
@@ -578,6 +586,43 @@ fn by_n(lead: &[&str], ns: &[String], tail: &[&str], rows: Vec<Vec<String>>) -> 
     table(&head, rows)
 }
 
+/// The report's rate table: multigrid's `mean_rate` per problem and method (CPU where it
+/// ran, else the GPU) against n; empty if no row has one.
+fn rates(t: &crate::report::Table, ns: &[String]) -> String {
+    let mut rows = Vec::new();
+    for p in t.distinct("problem") {
+        for m in t.distinct("method") {
+            let at = |n: &str| {
+                t.rows()
+                    .filter(|r| r.get("problem") == p && r.get("method") == m)
+                    .filter(|r| r.get("solver") == "multigrid" && r.get("n") == n)
+                    .min_by_key(|r| r.get("backend") != "cpu")
+                    .map(|r| r.num("mean_rate"))
+                    .filter(|x| x.is_finite())
+            };
+            let cells: Vec<_> = ns.iter().map(|n| at(n)).collect();
+            if cells.iter().any(Option::is_some) {
+                let mut row = vec![p.clone(), format!("`{m}`")];
+                row.extend(
+                    cells
+                        .iter()
+                        .map(|c| c.map_or("–".to_string(), |x| format!("{x:.3}"))),
+                );
+                rows.push(row);
+            }
+        }
+    }
+    if rows.is_empty() {
+        return String::new();
+    }
+    format!(
+        "Multigrid's mean reduction of R̄/j̄ per cycle from the first cycle to the one below \
+         the tolerance (`mean_rate`; grid-independent convergence means it does not grow with \
+         n; with 2–4 cycles to the tolerance one cycle more or less is 25–50 % of the count):\n\n{}\n",
+        by_n(&["problem", "method"], ns, &[], rows)
+    )
+}
+
 /// The report's D table: `d_max` and its ratio to `d_median` at the multigrid solutions
 /// (CPU where it ran, else the GPU) per problem and method; empty if no row has them.
 fn d_peaks(t: &crate::report::Table, ns: &[String]) -> String {
@@ -642,6 +687,7 @@ const STEP_COLUMNS: &[&str] = &[
     "backend",
     "seconds_to_tolerance",
     "steps_to_tolerance",
+    "mean_rate",
     "d_max",
     "d_median",
 ];
@@ -760,6 +806,7 @@ impl Experiment for MultigridScaling {
             rows,
         ));
         out.push('\n');
+        out.push_str(&rates(&t, &ns));
         out.push_str(&d_peaks(&t, &ns));
         out.push_str(&speedups(&t, &ns, "seconds"));
         out.push_str(&speedups(&t, &ns, "seconds_to_tolerance"));
