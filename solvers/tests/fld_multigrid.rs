@@ -316,11 +316,12 @@ fn method_names_select_multigrid() {
     assert!(solvers::method::parse("fld:lp:mg:auto").is_err());
     // The multigrid parameters, each refused without `:mg`/`:auto` and out of its range
     // with an error naming it: the Krylov depth (an integer 0–16), the smoother's ω (in
-    // (0, 2)) and the local relaxation's sweeps (an integer 0–64).
+    // (0, 2)), the local relaxation's sweeps (an integer 0–64) and the full-multigrid start
+    // (0 or 1).
     use solvers::method::{Params, parse_with};
     // (parameter, what its errors name, accepted (method, value), refused ones)
     type Case<'a> = (&'a str, &'a str, [(&'a str, f64); 3], &'a [(&'a str, f64)]);
-    let cases: [Case; 3] = [
+    let cases: [Case; 4] = [
         (
             "krylov",
             "krylov",
@@ -353,6 +354,17 @@ fn method_names_select_multigrid() {
                 ("cda:mg", 65.0),
                 ("fld:mg", -1.0),
                 ("fld:mg", f64::INFINITY),
+            ],
+        ),
+        (
+            "full_multigrid",
+            "full_multigrid",
+            [("cda:mg", 0.0), ("fld:lp:auto", 1.0), ("fld:mg", 1.0)],
+            &[
+                ("cda", 1.0),
+                ("cda:mg", 0.5),
+                ("cda:mg", 2.0),
+                ("fld:mg", -1.0),
             ],
         ),
     ];

@@ -83,11 +83,12 @@ impl FldMethod {
             self.config.d_relaxation = t;
         }
         let (krylov, omega) = (params.get("krylov"), params.get("smoother_omega"));
-        let local = params.get("local_sweeps");
+        let (local, fmg) = (params.get("local_sweeps"), params.get("full_multigrid"));
         let named = [
             ("krylov", krylov),
             ("smoother_omega", omega),
             ("local_sweeps", local),
+            ("full_multigrid", fmg),
         ];
         if let Some((name, value)) = named.into_iter().find_map(|(n, v)| Some((n, v?))) {
             let bad = |name, value, reason| SolverError::BadParameter {
@@ -119,6 +120,13 @@ impl FldMethod {
                     l,
                     "the local relaxation's sweeps are a non-negative integer",
                 )?;
+            }
+            if let Some(f) = fmg {
+                mg.full_multigrid = match count("full_multigrid", f, "a switch: 0 or 1")? {
+                    0 => false,
+                    1 => true,
+                    _ => return Err(bad("full_multigrid", f, "a switch: 0 or 1")),
+                };
             }
             // The bounds are `MgConfig::validate`'s.
             mg.validate()?;
@@ -249,6 +257,11 @@ const PARAMS: &[(&str, &str)] = &[
         "local_sweeps",
         "multigrid (:mg, :auto, CPU) only: extra red-black sweeps 0–64, twice per cycle, in a \
          box around each point-like source; default 8, 0 = none",
+    ),
+    (
+        "full_multigrid",
+        "multigrid (:mg, :auto, CPU) only: 1 starts from a full-multigrid (nested-iteration) \
+         guess, 0 from phi = 0; default 1",
     ),
 ];
 

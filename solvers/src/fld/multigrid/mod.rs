@@ -452,7 +452,25 @@
 //!   CDA 127³ 0.147 → 0.127 s, 255³ 1.97 → 0.86 s (R̄/j̄ below 10⁻⁶ after 2 cycles instead
 //!   of 3); FLD-LP 127³ 0.52 → 0.42 s, 255³ 5.11 → 4.54 s. Alternating runs of an ad-hoc
 //!   driver (127³ CDA, albedo 0.5, six runs each) gave 0.166–0.195 s from φ = 0 and
-//!   0.128–0.142 s with FMG. The FMG start ends each level with one cycle of the solve's
+//!   0.128–0.142 s with FMG. Issue 15's acceptance 3 with it (`point_source --boundary zero
+//!   --tolerance 1e-6 --solver sor,multigrid`, every Fig 5 albedo, one run per size, SOR /
+//!   multigrid seconds to the tolerance, setup excluded on both sides): 127³ CDA 5.6–8.0×
+//!   (SOR 0.87–1.21 s for 274–284 sweeps, multigrid 0.11–0.18 s, R̄/j̄ below 10⁻⁶ after 2
+//!   cycles), FLD-LP 6.5–13.5× (SOR 4.3–7.8 s, multigrid 0.45–0.74 s, 4 or 5 cycles); 255³
+//!   CDA 9.1–15.6× (SOR 12.7–13.3 s for 543–566 sweeps, multigrid 0.85–1.41 s, 2 cycles; the
+//!   two lowest albedos 9.1× and 9.2×); φ 0.7–3.1·10⁻⁶ from SOR's (relative L2). A 127³ CDA
+//!   solve to the tolerance is now the FMG start and two cycles, 30–50 SOR sweeps of wall
+//!   time against SOR's 277, so 10× there needs a cycle that costs little more than its
+//!   smoothing. Where a 127³ CDA cycle's time goes now (an instrumented build, not kept; four
+//!   cycles from φ = 0, albedo 0.5, three runs, 0.22–0.23 s): the 16 fine sweeps 56–60 ms,
+//!   the two fine residuals per cycle 35–37 ms (22–25 ms with Krylov depth 0: the rest is the
+//!   first touch of the vectors the history keeps), the coarse levels 34–39 ms, the local
+//!   boxes 21–25 ms, the transfers 15–19 ms, packing and unpacking φ 10–11 ms, the Krylov
+//!   sums and combination 8–9 ms, the error estimate 5–6 ms. Starting the Krylov history only
+//!   after a cycle that reduces R̄/j̄ by less than 20× (tried, not kept) left the 127³ CDA
+//!   time to the tolerance within the noise (0.112–0.134 s against 0.115–0.135 s, three
+//!   alternating pairs) and, measured without the FMG start, cost the 63³ `ball_source` CDA
+//!   a cycle (4 → 5). The FMG start ends each level with one cycle of the solve's
 //!   kind (F). The GPU starts from φ = 0 (`MgConfig::plain_fas`), and so does
 //!   [`CoarseOp::Galerkin`], whose coarse levels solve for corrections only. Pinned by
 //!   `the_full_multigrid_start_cuts_the_first_residual` (`tests/fld_multigrid.rs`).
