@@ -586,32 +586,44 @@ fn by_n(lead: &[&str], ns: &[String], tail: &[&str], rows: Vec<Vec<String>>) -> 
     table(&head, rows)
 }
 
-/// The report's rate table: multigrid's `mean_rate` per problem and method (CPU where it
-/// ran, else the GPU) against n; empty if no row has one.
-fn rates(t: &crate::report::Table, ns: &[String]) -> String {
+/// Rows (problem, method, one cell per n) of a report table over the multigrid solves (CPU
+/// where it ran, else the GPU): `cell` formats a solve's row or returns `None` ("–"); a
+/// problem and method without any cell gets no row.
+fn multigrid_rows(
+    t: &crate::report::Table,
+    ns: &[String],
+    cell: impl Fn(&crate::report::Row<'_>) -> Option<String>,
+) -> Vec<Vec<String>> {
     let mut rows = Vec::new();
     for p in t.distinct("problem") {
         for m in t.distinct("method") {
-            let at = |n: &str| {
-                t.rows()
-                    .filter(|r| r.get("problem") == p && r.get("method") == m)
-                    .filter(|r| r.get("solver") == "multigrid" && r.get("n") == n)
-                    .min_by_key(|r| r.get("backend") != "cpu")
-                    .map(|r| r.num("mean_rate"))
-                    .filter(|x| x.is_finite())
-            };
-            let cells: Vec<_> = ns.iter().map(|n| at(n)).collect();
+            let cells: Vec<Option<String>> = ns
+                .iter()
+                .map(|n| {
+                    t.rows()
+                        .filter(|r| r.get("problem") == p && r.get("method") == m)
+                        .filter(|r| r.get("solver") == "multigrid" && r.get("n") == n)
+                        .min_by_key(|r| r.get("backend") != "cpu")
+                        .and_then(|r| cell(&r))
+                })
+                .collect();
             if cells.iter().any(Option::is_some) {
                 let mut row = vec![p.clone(), format!("`{m}`")];
-                row.extend(
-                    cells
-                        .iter()
-                        .map(|c| c.map_or("–".to_string(), |x| format!("{x:.3}"))),
-                );
+                row.extend(cells.into_iter().map(|c| c.unwrap_or_else(|| "–".into())));
                 rows.push(row);
             }
         }
     }
+    rows
+}
+
+/// The report's rate table: multigrid's `mean_rate` per problem and method against n; empty
+/// if no row has one.
+fn rates(t: &crate::report::Table, ns: &[String]) -> String {
+    let rows = multigrid_rows(t, ns, |r| {
+        let x = r.num("mean_rate");
+        x.is_finite().then(|| format!("{x:.3}"))
+    });
     if rows.is_empty() {
         return String::new();
     }
@@ -623,40 +635,23 @@ fn rates(t: &crate::report::Table, ns: &[String]) -> String {
     )
 }
 
-/// The report's D table: `d_max` and its ratio to `d_median` at the multigrid solutions
-/// (CPU where it ran, else the GPU) per problem and method; empty if no row has them.
+/// The report's D table: `d_max` and its ratio to `d_median` at the multigrid solutions per
+/// problem and method; empty if no row has them.
 fn d_peaks(t: &crate::report::Table, ns: &[String]) -> String {
-    let mut rows = Vec::new();
-    for p in t.distinct("problem") {
-        for m in t.distinct("method") {
-            let at = |n: &str| {
-                t.rows()
-                    .filter(|r| r.get("problem") == p && r.get("method") == m)
-                    .filter(|r| r.get("solver") == "multigrid" && r.get("n") == n)
-                    .min_by_key(|r| r.get("backend") != "cpu")
-                    .map(|r| (r.num("d_max"), r.num("d_median"), r.get("stop")))
-                    .filter(|(x, y, _)| x.is_finite() && *y > 0.0)
-            };
-            let cells: Vec<_> = ns.iter().map(|n| at(n)).collect();
-            if cells.iter().any(Option::is_some) {
-                let mut row = vec![p.clone(), format!("`{m}`")];
-                row.extend(cells.iter().map(|c| match c {
-                    None => "–".to_string(),
-                    Some((x, y, stop)) => {
-                        let ratio = x / y;
-                        let digits = if ratio < 10.0 { 1 } else { 0 };
-                        let mark = if *stop == "converged" {
-                            String::new()
-                        } else {
-                            format!(" {stop}")
-                        };
-                        format!("{x:.3} ({ratio:.digits$}×){mark}")
-                    }
-                }));
-                rows.push(row);
-            }
+    let rows = multigrid_rows(t, ns, |r| {
+        let (x, y, stop) = (r.num("d_max"), r.num("d_median"), r.get("stop"));
+        if !(x.is_finite() && y > 0.0) {
+            return None;
         }
-    }
+        let ratio = x / y;
+        let digits = if ratio < 10.0 { 1 } else { 0 };
+        let mark = if stop == "converged" {
+            String::new()
+        } else {
+            format!(" {stop}")
+        };
+        Some(format!("{x:.3} ({ratio:.digits$}×){mark}"))
+    });
     if rows.is_empty() {
         return String::new();
     }

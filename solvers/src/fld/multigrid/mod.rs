@@ -456,9 +456,11 @@
 //!   --tolerance 1e-6 --solver sor,multigrid`, every Fig 5 albedo, one run per size, SOR /
 //!   multigrid seconds to the tolerance, setup excluded on both sides): 127³ CDA 5.6–8.0×
 //!   (SOR 0.87–1.21 s for 274–284 sweeps, multigrid 0.11–0.18 s, R̄/j̄ below 10⁻⁶ after 2
-//!   cycles), FLD-LP 6.5–13.5× (SOR 4.3–7.8 s, multigrid 0.45–0.74 s, 4 or 5 cycles); 255³
-//!   CDA 9.1–15.6× (SOR 12.7–13.3 s for 543–566 sweeps, multigrid 0.85–1.41 s, 2 cycles; the
-//!   two lowest albedos 9.1× and 9.2×); φ 0.7–3.1·10⁻⁶ from SOR's (relative L2). A 127³ CDA
+//!   cycles), FLD-LP 6.5–13.5× (SOR 4.3–7.8 s, multigrid 0.45–0.74 s, 5 or 6 cycles with
+//!   the stop); 255³ CDA 9.1–15.6× (SOR 12.7–13.3 s for 543–566 sweeps, multigrid 0.85–1.41
+//!   s, 2 cycles; the two lowest albedos 9.1× and 9.2×), FLD-LP at albedo 0.5 19.6× (SOR 2078
+//!   sweeps in 111.1 s, multigrid 5.68 s, 7 cycles with the stop); φ 0.7–3.1·10⁻⁶ from SOR's
+//!   (relative L2; FLD-LP at 255³ 1.8·10⁻⁶). A 127³ CDA
 //!   solve to the tolerance is now the FMG start and two cycles, 30–50 SOR sweeps of wall
 //!   time against SOR's 277, so 10× there needs a cycle that costs little more than its
 //!   smoothing. Where a 127³ CDA cycle's time goes now (an instrumented build, not kept; four
