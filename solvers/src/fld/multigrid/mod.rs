@@ -452,7 +452,11 @@
 //!   CDA 127³ 0.147 → 0.127 s, 255³ 1.97 → 0.86 s (R̄/j̄ below 10⁻⁶ after 2 cycles instead
 //!   of 3); FLD-LP 127³ 0.52 → 0.42 s, 255³ 5.11 → 4.54 s. Alternating runs of an ad-hoc
 //!   driver (127³ CDA, albedo 0.5, six runs each) gave 0.166–0.195 s from φ = 0 and
-//!   0.128–0.142 s with FMG. Issue 15's acceptance 3 with it (`point_source --boundary zero
+//!   0.128–0.142 s with FMG. The FMG start and the local boxes work together: without the
+//!   boxes (`local_sweeps` 0) the FMG start leaves the point source's residual at the source
+//!   (127³ CDA: 4.8·10⁻³, 2.2·10⁻⁵, 3.4·10⁻⁷ after cycles 1–3 against 3.2·10⁻⁵, 3.2·10⁻⁷ with
+//!   them; 0.17–0.22 s to the tolerance against 0.14–0.15 s, two alternating pairs; 255³ 3
+//!   cycles to the tolerance against 2). Issue 15's acceptance 3 with it (`point_source --boundary zero
 //!   --tolerance 1e-6 --solver sor,multigrid`, every Fig 5 albedo, one run per size, SOR /
 //!   multigrid seconds to the tolerance, setup excluded on both sides): 127³ CDA 5.6–8.0×
 //!   (SOR 0.87–1.21 s for 274–284 sweeps, multigrid 0.11–0.18 s, R̄/j̄ below 10⁻⁶ after 2
