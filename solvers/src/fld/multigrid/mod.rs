@@ -476,7 +476,13 @@
 //!   after a cycle that reduces R̄/j̄ by less than 20× (tried, not kept) left the 127³ CDA
 //!   time to the tolerance within the noise (0.112–0.134 s against 0.115–0.135 s, three
 //!   alternating pairs) and, measured without the FMG start, cost the 63³ `ball_source` CDA
-//!   a cycle (4 → 5). The FMG start ends each level with one cycle of the solve's
+//!   a cycle (4 → 5). Nor does F(1, 2) pay as a default with the FMG start (CDA, albedo 0.5,
+//!   one run each, F(2, 2) → F(1, 2), cycles and seconds to the tolerance at n = 31, 63, 127,
+//!   255): the point source keeps 4, 4, 4 cycles and 3 → 4 at 255 (1.62 → 1.00 s there,
+//!   R̄/j̄ below 10⁻⁶ after 2 cycles either way; at 127³ 0.145–0.193 → 0.115–0.118 s over
+//!   two alternating pairs), but the Fig 4 cloud takes 8, 9, 11, 13 → 9, 11, 13, 16 cycles
+//!   (0.58 → 0.65 s at 127³, 6.5 → 6.7 s at 255³) and `ball_source` 4, 4, 3, 3 → 5, 4, 4, 4
+//!   (1.72 → 2.22 s at 255³). The FMG start ends each level with one cycle of the solve's
 //!   kind (F). The GPU starts from φ = 0 (`MgConfig::plain_fas`), and so does
 //!   [`CoarseOp::Galerkin`], whose coarse levels solve for corrections only. Pinned by
 //!   `the_full_multigrid_start_cuts_the_first_residual` (`tests/fld_multigrid.rs`).
