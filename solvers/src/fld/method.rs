@@ -122,9 +122,9 @@ impl FldMethod {
                 )?;
             }
             if let Some(f) = fmg {
-                mg.full_multigrid = match count("full_multigrid", f, "a switch: 0 or 1")? {
-                    0 => false,
-                    1 => true,
+                mg.full_multigrid = match f {
+                    0.0 => false,
+                    1.0 => true,
                     _ => return Err(bad("full_multigrid", f, "a switch: 0 or 1")),
                 };
             }

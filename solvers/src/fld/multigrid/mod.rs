@@ -490,8 +490,10 @@
 //!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; with ω = 1.2, 8 → 14 and 14 →
 //!   125; at n = 127 with V cycles, 84 of 108 were Picard cycles after the FAS stalled). For
 //!   FLD-LP on the point source they grew too (9 → 13; with ω = 1.2, 8 → 12) until the local
-//!   relaxation (above: 6, 6, 6, 7): the ≤ 25 % of issue 15 now holds on the point source
-//!   for CDA and FLD-LP, not on the cloud. Local relaxation does not fix the cloud (2026-12-07,
+//!   relaxation (above: 6, 6, 6, 7): the ≤ 25 % of issue 15 then held on the point source
+//!   for CDA and FLD-LP, not on the cloud. With the FMG start (above) R̄/j̄ falls below 10⁻⁶
+//!   after 3, 3, 2, 2 cycles (CDA: the count falls with n, 50 % as a spread) and 4, 4, 4, 5
+//!   (FLD-LP, 25 %) at n = 31…255 (`multigrid_scaling`'s `steps_to_tolerance`). Local relaxation does not fix the cloud (2026-12-07,
 //!   ad-hoc builds, not kept; cycles to R̄/j̄ < 10⁻⁶): 8 extra sweeps twice per cycle on its
 //!   surface shell (the voxels within 2 of a vacuum/medium face: 82 432, 4.0 % of the grid at
 //!   127³; the voxels on either side of a face held 25–33 % of Σr² after each cycle, the
@@ -1283,34 +1285,52 @@ impl<T: Real> CpuMultigrid<T> {
         for _ in 0..self.mg.pre {
             self.sweep(l);
         }
+        if self.galerkin.is_empty() {
+            self.fas_correct(l, |mg| {
+                mg.visit(l + 1, kind);
+                if kind == Cycle::F {
+                    mg.visit(l + 1, Cycle::V);
+                }
+            });
+        } else {
+            // [`CoarseOp::Galerkin`] (l = 0): the coarse levels solve for the correction.
+            let (mut phi, d, r) = self.phi_and_residual(l);
+            self.give(l, d);
+            self.galerkin_correct(l, r, kind, &mut phi, true);
+            self.hand_back(l, phi);
+        }
+        for _ in 0..self.mg.post {
+            self.sweep(l);
+        }
+    }
+
+    /// Level l's φ (natural layout), its D (`None` for a constant limiter) and its residual,
+    /// in pooled vectors.
+    fn phi_and_residual(&mut self, l: usize) -> (Vec<f64>, Option<Vec<f64>>, Vec<f64>) {
         let mut phi = self.take(l);
         self.levels[l].fld.mg_phi_into(&mut phi);
         let d = self.fresh_d(l, &phi);
         let r = self.residual(l, &phi, &d);
-        if !self.galerkin.is_empty() {
-            // [`CoarseOp::Galerkin`] (l = 0): the coarse levels solve for the correction.
-            self.give(l, d);
-            self.galerkin_correct(l, r, kind, &mut phi, true);
-            self.relax_locally(&mut phi);
-            self.set_phi(l, phi);
-            for _ in 0..self.mg.post {
-                self.sweep(l);
-            }
-            return;
-        }
+        (phi, d, r)
+    }
+
+    /// The FAS coarse-grid correction of level l: the coarse problem at the current φ is set
+    /// up, `solve_coarse` solves it, and the correction goes back to level l's smoother.
+    fn fas_correct(&mut self, l: usize, solve_coarse: impl FnOnce(&mut Self)) {
+        let (mut phi, d, r) = self.phi_and_residual(l);
         let phi_c0 = self.coarse_problem(l, &phi, d, r);
-        self.visit(l + 1, kind);
-        if kind == Cycle::F {
-            self.visit(l + 1, Cycle::V);
-        }
+        solve_coarse(self);
         self.correct(l, &mut phi, phi_c0);
+        self.hand_back(l, phi);
+    }
+
+    /// Hands a corrected φ of level l back to its smoother, the finest level's local boxes
+    /// relaxed first.
+    fn hand_back(&mut self, l: usize, mut phi: Vec<f64>) {
         if l == 0 {
             self.relax_locally(&mut phi);
         }
         self.set_phi(l, phi);
-        for _ in 0..self.mg.post {
-            self.sweep(l);
-        }
     }
 
     /// Sets up level l + 1's FAS problem at level l's φ (natural layout) with its D (`None`
@@ -1386,17 +1406,7 @@ impl<T: Real> CpuMultigrid<T> {
             self.cycle_at(l, Cycle::V);
             return;
         }
-        let mut phi = self.take(l);
-        self.levels[l].fld.mg_phi_into(&mut phi);
-        let d = self.fresh_d(l, &phi);
-        let r = self.residual(l, &phi, &d);
-        let phi_c0 = self.coarse_problem(l, &phi, d, r);
-        self.sized(l + 1, |mg| mg.fmg_at(l + 1));
-        self.correct(l, &mut phi, phi_c0);
-        if l == 0 {
-            self.relax_locally(&mut phi);
-        }
-        self.set_phi(l, phi);
+        self.fas_correct(l, |mg| mg.sized(l + 1, |mg| mg.fmg_at(l + 1)));
         if l > 0 {
             self.cycle_at(l, self.mg.cycle);
         }
