@@ -471,8 +471,8 @@
 //!   cycles from φ = 0, albedo 0.5, three runs, 0.22–0.23 s): the 16 fine sweeps 56–60 ms,
 //!   the two fine residuals per cycle 35–37 ms (22–25 ms with Krylov depth 0: the rest is the
 //!   first touch of the vectors the history keeps), the coarse levels 34–39 ms, the local
-//!   boxes 21–25 ms, the transfers 15–19 ms, packing and unpacking φ 10–11 ms, the Krylov
-//!   sums and combination 8–9 ms, the error estimate 5–6 ms. Starting the Krylov history only
+//!   boxes 21–25 ms, the transfers 17–21 ms, packing and unpacking φ 10–11 ms, the Krylov
+//!   sums and combination 8–10 ms, the error estimate 5–6 ms. Starting the Krylov history only
 //!   after a cycle that reduces R̄/j̄ by less than 20× (tried, not kept) left the 127³ CDA
 //!   time to the tolerance within the noise (0.112–0.134 s against 0.115–0.135 s, three
 //!   alternating pairs) and, measured without the FMG start, cost the 63³ `ball_source` CDA
