@@ -4,648 +4,240 @@
 //! With L(φ) = −∇·(D(φ)∇φ) + σa φ discretised as in FLD Eq 32, the FAS coarse problem is
 //! L_c(φ_c) = R(j − L(φ)) + L_c(R̂φ), and φ ← φ + P(φ_c − R̂φ) (Brandt's FAS).
 //!
+//! This page states the algorithm as it runs, each decision with the measurement that settled
+//! it and the test that pins it, what a solve costs against SOR, and what is known not to
+//! work. The dated measurements behind every decision, stage by stage and with the variants
+//! that were built and dropped, are in `HISTORY.md` next to this file.
+//!
+//! ## The cycle
 //! * **Smoother:** the red-black sweep of FLD Algorithm 1 itself ([`CpuFld`], same arithmetic,
 //!   floors σ_ε and ε, θ-relaxed D update and projection φ ≥ 0), over-relaxed at ω = 1.2
-//!   ([`MgConfig::smoother_omega`]; Gauss–Seidel, ω = 1, until 2026-12-07: next decisions).
+//!   ([`MgConfig::smoother_omega`]).
 //! * **Levels (per axis, see `Axis`).** The Dirichlet values sit at the layer voxels'
 //!   centres, so the m interior unknowns of an axis are nodes 1..m between boundary nodes 0
 //!   and m + 1. With m odd the axis is coarsened vertex-wise (coarse node c = fine node 2c,
 //!   the coarse layer on the fine one, m → (m − 1)/2); with m even cell-wise (coarse voxel
-//!   c covers fine 2c − 1, 2c, m → m/2, the coarse layer half a fine voxel outside). The
-//!   coarse medium keeps ∫σa (full weighting ¼, ½, ¼ on vertex axes, the mean of the two
-//!   children on cell axes); the σ of its diffusion coefficient is the harmonic mean of the
-//!   children's (floored) σ with the same weights ([`CoarseSigma`], next decision), and it is
-//!   rediscretised with the same floors (σ_ε of the finest grid). **Changed (2026-12-03):** every axis used to be coarsened cell-wise
-//!   with coarse voxel I covering fine 2I − 1, 2I; for odd m (every point-source grid) the
-//!   last coarse voxel then straddled the Dirichlet layer and the coarse boundary sat 2 fine
-//!   voxels from its centre instead of ½, a coarse operator that does not approximate the
-//!   fine one near the boundary. Measured (V(2,2), f64, cycles to R̄/j̄ < 10⁻⁶, point source
-//!   τ = 10, albedo 0.9): CDA at n = 17, 33, 65 took 6, 8, 13 cycles before and takes 5, 5
-//!   (n = 17, 33) with an asymptotic rate of 0.06–0.09 per cycle after; FLD-LP 6, 7, 8
-//!   before, 6, 7 after (rate 0.05–0.10); albedo 1: CDA 5, 5, FLD-LP 7, 7
-//!   (`tests/fld_multigrid.rs`). At n = 31 and 63 (cell-coarsened second level): CDA 6, 6
-//!   (albedo 0.9 and 1; rate 0.11–0.14), FLD-LP 7, 9 (albedo 0.9) and 9, 9 (albedo 1; rate
-//!   0.2–0.3): CDA is within the issue's 25 % over n = 17…63, FLD-LP is not (6 → 9). On
-//!   the Fig 4 cloud FLD-LP takes 14, 22, 21 cycles at n = 17, 31, 33 and at 63 has not
-//!   reached 10⁻⁶ after 40 (7.6·10⁻⁶, rate 0.77): not grid-independent where vacuum is.
+//!   c covers fine 2c − 1, 2c, m → m/2, the coarse layer half a fine voxel outside). So odd
+//!   and non-power-of-two grids coarsen without padding (127 → 64 → 33 → 17 → … voxels per
+//!   axis, layers included). The coarse medium keeps ∫σa (full weighting ¼, ½, ¼ on vertex
+//!   axes, the mean of the two children on cell axes); the σ of its diffusion coefficient is
+//!   the harmonic mean of the children's floored σ with the same weights ([`CoarseSigma`]),
+//!   rediscretised with the floors of the finest grid.
 //! * **Transfers:** linear prolongation of the correction in node positions (vertex axes
-//!   ½, ½; cell axes ¾, ¼; zero correction on the coarse Dirichlet layer); residual
-//!   restriction by its adjoint over 8 (full weighting); R̂φ as the medium's restriction.
+//!   ½, ½; cell axes ¾, ¼; zero correction on the coarse Dirichlet layer, projected onto
+//!   φ ≥ 0 like the smoother's update); residual restriction by its adjoint over 8 (full
+//!   weighting); R̂φ as the medium's restriction. All are separable, one axis at a time over
+//!   contiguous rows (`restrict_separable`, `prolong_add`).
 //! * **D on every level:** before a residual is formed, D = F(R(φ))/σ is recomputed from that
-//!   level's φ (FLD Eqs 33–35, one-sided ∇φ on the Dirichlet layer, as the SOR does).
+//!   level's φ (FLD Eqs 33–35, one-sided ∇φ on the Dirichlet layer, as the SOR does). A
+//!   constant limiter's D is computed once per level.
+//! * **Coarsest level:** coarsening stops when an axis has fewer than 4 interior voxels; there
+//!   up to 200 sweeps run until the sweep residual drops by 10⁻³.
+//! * **A solve:** a full-multigrid start (the FAS problem at φ = 0 solved coarsest first, each
+//!   level's correction prolongated and given one cycle), then F(2, 2) cycles. Before each
+//!   cycle the fine φ becomes the best combination of the last 4 cycle results (Krylov depth
+//!   3); after each coarse-grid correction and after each cycle, 8 extra sweeps run in a box
+//!   of optical half-width 0.5 around each point-like source. One work unit is one fine sweep;
+//!   a sweep on level ℓ counts 8^(−ℓ), a box sweep its share of the grid.
+//! * **Stop:** R̄/j̄ < tolerance (FLD Eq 37, next section) *and* the change-based error estimate
+//!   ‖Δφ‖/‖φ‖/(1 − ρ̂) below it (`ErrorEstimate`; the `fld` module docs, "Residual window",
+//!   say why the residual alone is not enough), or a stall, the cap, or a non-finite residual.
+//!   `FldTrace::seconds_to_tolerance` records when R̄/j̄ itself first fell below the tolerance,
+//!   the like-for-like time against SOR, whose stop is the residual alone.
 //!
 //! ## Decisions where the paper is silent (it names multigrid only as future work)
+//! Measured on 2-vCPU AMD EPYC hosts (7002 until 2026-12-06, then Zen 5, 32 MiB L3), f64,
+//! `multigrid_scaling`'s problems unless stated: the point source (τ = 4, albedo 0.5), the Fig 4
+//! cloud, and three controls: `ball_source` (the point source's power over a ball of radius
+//! 0.1), `cloud_thin` (the cloud's vacuum filled by σt = 0.5) and `cloud_floor` (σ_ε = 1).
+//! Cycle counts do not depend on the host or the thread count; seconds are one run each.
 //! * **Stopping measure.** R̄/j̄ of FLD Eq 37 over the same window as SOR, but evaluated with
 //!   D recomputed from the current φ (the residual of the nonlinear equation itself, not of
 //!   the lagged D the sweep carries); at SOR's fixed point both coincide.
 //! * **Stall.** If 8 consecutive cycles fail to reduce the best residual by 10 %, the solve
 //!   stops with [`Stop::Stalled`], never [`Stop::Converged`]; the 95 %-vacuum white-noise
 //!   medium that stalls SOR is the case this guards (tested in `tests/fld_multigrid.rs`).
-//! * **Coarsest level:** coarsening stops when an axis has fewer than 4 interior voxels; there
-//!   up to 200 sweeps run until the sweep residual drops by 10⁻³.
-//! * **Cycles: F(2, 2) by default (V(2, 2) until 2026-12-06); V-cycles on request.** One
-//!   work unit = one fine sweep; a sweep on level ℓ counts 8^(−ℓ). Measured with the Krylov
-//!   acceleration of depth 3 (next decisions; 2-vCPU AMD EPYC 7002, quiet, one run each,
-//!   cycles and seconds to R̄/j̄ < 10⁻⁶ incl. setup, V → F): point source CDA n = 127 7
-//!   cycles 0.60 s → 5, 0.55 s; 255: 6, 4.6 s → 5, 4.9 s; FLD-LP 127: 16, 2.88 s → 11, 2.43
-//!   s; 255: 20, 27.0 s → 13, 19.9 s; Fig 4 cloud CDA 127: 17, 1.21 s → 14, 1.28 s; 255: 22,
-//!   11.7 s → 16, 10.6 s; FLD-LP 127: 108, 19.0 s → 54, 11.6 s. Cycles at n = 31, 63, 127
-//!   (V → F): point source CDA 6, 6, 7 → 5, 5, 5, FLD-LP 9, 12, 16 → 9, 10, 11; cloud CDA 10,
-//!   13, 17 → 10, 12, 14, FLD-LP 17, 34, 108 → 14, 21, 54. An F-cycle costs about 1.3 V-cycles
-//!   of coarse work for the same 4 fine sweeps, so fewer, flatter cycles win.
-//! * **The smoother's ω: 1.2, over-relaxed red-black ([`MgConfig::smoother_omega`];
-//!   2026-12-07, 2-vCPU AMD EPYC Zen 5, 32 MiB L3).** Red-black SOR smooths better than
-//!   Gauss–Seidel for some ω slightly above 1 (Yavneh's analysis of red-black relaxation as a
-//!   smoother), and a smoother that also damps some smooth error helps where the coarse
-//!   correction is weakest, in vacuum. Measured with `multigrid_scaling --smoother-omega ω`
-//!   (defaults otherwise: F(2, 2), Krylov depth 3; f64, cycles to R̄/j̄ < 10⁻⁶ at n = 31, 63,
-//!   127 for ω = 1, 1.2, 1.3, 1.4, 1.5):
-//!   point source CDA 5,5,5 | 5,5,5 | 5,5,5 | 5,5,5 | 7,6,6; FLD-LP 9,10,11 | 8,9,10 |
-//!   7,9,10 | 7,8,10 | 7,8,10; Fig 4 cloud CDA 10,12,14 | 8,10,12 | 7,9,11 | 7,9,10 | 7,8,9;
-//!   FLD-LP 14,21,54 | 14,20,43 | 13,19,38 | 13,18,36 | 12,17,33; `ball_source` CDA 5,5,5 |
-//!   5,4,4 | 4,4,4 | 5,5,5 | 6,6,5; FLD-LP 7,7,8 | 7,7,7 (the rest 7,7,7); `cloud_thin` CDA
-//!   8,9,9 | 7,8,9 | 6,7,8 (1.4, 1.5 the same); FLD-LP 11,13,15 | 10,12,14 | 10,11,13 |
-//!   9,11,12 | 9,10,12; `cloud_floor` CDA 7,8,8 | 6,7,8 | 6,7,7 | 6,6,7 | 6,7,7; FLD-LP
-//!   9,10,12 | 9,9,11 | 8,9,10 (1.4, 1.5 the same). At n = 255 (ω = 1, 1.2, 1.3): point
-//!   source CDA 5, 5, 4, FLD-LP 13, 12, 12; cloud CDA 16, 14, 12; `ball_source` CDA 4, 4, 4,
-//!   FLD-LP 8, 8, 7; `cloud_thin` CDA 10, 9, 9, FLD-LP 19, 17, 16; `cloud_floor` CDA 9, 8, 8,
-//!   FLD-LP 14, 12, 12; but the cloud with FLD-LP, whose count is set by the peak of D
-//!   (below), 154, 125, 164 (ω = 1.25: 145, 1.4: 173). ω = 1.2 is the largest ω measured that
-//!   needed no more cycles than Gauss–Seidel in any of these 40 runs; 1.3 and above save
-//!   more on the vacuum problems but cost the 255³ cloud FLD-LP 164 cycles, and 1.5 costs
-//!   the point source CDA one or two (7, 6, 6). The Krylov acceleration still pays with
-//!   the over-relaxed smoother (ω = 1.3, depth 0 → 3, n = 31, 63, 127: point source FLD-LP
-//!   10,12,13 → 7,9,10; cloud CDA 12,18,24 → 7,9,11; FLD-LP 15,26,100 → 13,19,38), so its
-//!   depth stays 3. Nor does the cheaper F(1, 2) pay with it (ω = 1.2, n = 127, an ad-hoc
-//!   driver, two alternating runs each): point source CDA 5 cycles either way (19.6 against
-//!   26.1 work units) but 0.27–0.28 s to the tolerance against 0.20–0.23 s, FLD-LP 11
-//!   against 10 cycles (1.53–1.59 s against 1.43–1.62 s), cloud CDA 13 against 12
-//!   (0.59–0.67 s against 0.66–0.67 s), FLD-LP 51 against 43 (6.8–7.2 s against 6.5–7.6 s):
-//!   F(2, 2) stays. Seconds (`point_source --n 127 --boundary zero --tolerance 1e-6 --solver
-//!   sor,multigrid --limiter cda,lp`, every Fig 5 albedo, one run, a noisy host: SOR's CDA
-//!   sweeps took 0.84–1.53 s for 274–284 of them): SOR / multigrid to the tolerance CDA
-//!   4.5–5.4× (5 cycles, 4 to the tolerance; 4.1–4.8× with ω = 1 in the last session's run),
-//!   FLD-LP 4.0–9.1× (10 cycles; 3.4–6.9× with ω = 1 and 11 cycles); at 255³ CDA 9.4–9.9×
-//!   (543–566 sweeps in 13.9–16.2 s against 1.44–1.64 s; 8.1–11.3× with ω = 1), since the
-//!   cycles to the tolerance stay 4 there. φ agrees with SOR's to 0.4–3.6·10⁻⁶ relative L2
-//!   at both sizes. The GPU runs the same ω (`tests/fld_multigrid_gpu.rs` on lavapipe, ω =
-//!   1.2: the 33³ point source and the 24 × 20 × 27 block in 4–6 cycles, the same count as
-//!   the CPU-f32 multigrid in all 12 cases, 1.3–12·10⁻⁷ relative L2 apart; FLD-LP on 95 %
-//!   vacuum now gets to f32's floor, ≈ 10⁻⁵, where it stalled at 6·10⁻³ with ω = 1).
-//!   `over_relaxed_smoothing_cuts_cycles` (`tests/fld_multigrid.rs`) pins the cut: cloud
-//!   13 → 10, 30 % vacuum noise 19 → 17, point source CDA 7 → 6, FLD-LP 9 → 8. The committed
-//!   `multigrid_scaling` run with ω = 1.2 (quiet host, 211 s against 245 s with ω = 1) took
-//!   the 255³ cloud FLD-LP solve to R̄/j̄ < 10⁻⁶ in 125 cycles and 72 s (154 cycles and 93 s
-//!   before), and puts SOR / multigrid seconds at 127³ at 4.5× (point source CDA), 3.7×
-//!   (FLD-LP), 2.1× (cloud CDA) and 7.8× (cloud FLD-LP), against 4.2×, 3.4×, 1.6× and 5.8×.
+//! * **Coarsening by the parity of each axis.** Coarsening every axis cell-wise (the first
+//!   version) left the last coarse voxel of an odd axis straddling the Dirichlet layer, a coarse
+//!   operator that does not approximate the fine one near the boundary: V(2, 2) cycles to
+//!   10⁻⁶ on the point source (τ = 10, albedo 0.9) at n = 17, 33, 65 were CDA 6, 8, 13 with
+//!   it and 5, 5 (n = 17, 33) with vertex coarsening of odd axes (`tests/fld_multigrid.rs`).
+//!   Injection for R̂φ on vertex axes stalls FLD-LP at R̄/j̄ ≈ 2–4·10⁻² on the point source
+//!   (n = 33) and at albedo 1; full weighting converges in 6–7 cycles.
+//! * **Coarse σ: harmonic ([`CoarseSigma`]).** The fine operator couples voxels through
+//!   ½(D_p + D_q), so a vacuum voxel (D = 1/(3σ_ε), a near-perfect conductor) makes its faces
+//!   conduct; a coarse σ that is the arithmetic mean of its children's loses that. With it CDA
+//!   on the Fig 4 cloud, on white noise with 30 % or 95 % vacuum and on 10⁴-contrast noise cut
+//!   the residual in the first cycle and then diverged (`Stalled`); with the harmonic σ (a
+//!   constant limiter's coarse D is then the mean of the fine D) all converge to 10⁻⁹. FLD
+//!   changes by ±1 cycle (its D in vacuum is flux-limited, ≈ φ/|∇φ|, whatever σ). Pinned by
+//!   `tests/fld_multigrid.rs` (the arithmetic σ is pinned to stall on the cloud).
+//! * **F(2, 2) cycles ([`Cycle`]).** An F-cycle costs about 1.3 V-cycles of coarse work for
+//!   the same 4 fine sweeps and needs fewer, flatter cycles: with Krylov depth 3, V → F cycles
+//!   at n = 31, 63, 127: point source CDA 6, 6, 7 → 5, 5, 5, FLD-LP 9, 12, 16 → 9, 10, 11;
+//!   cloud CDA 10, 13, 17 → 10, 12, 14, FLD-LP 17, 34, 108 → 14, 21, 54 (seconds at 127³ the
+//!   same or less). F(2, 1), F(1, 2), F(1, 1), F(3, 3) and W-cycles took as many or more
+//!   cycles on the cloud or `ball_source`, or more seconds (`HISTORY.md`).
+//! * **The smoother's ω: 1.2 ([`MgConfig::smoother_omega`]).** Over-relaxed red-black
+//!   relaxation smooths better than Gauss–Seidel for ω slightly above 1 (Yavneh), and damps
+//!   some smooth error where the coarse correction is weakest, in vacuum. Over the 40 runs of
+//!   `multigrid_scaling --smoother-omega` (5 problems × CDA and FLD-LP × n = 31…255), 1.2 was
+//!   the largest ω that needed no more cycles than Gauss–Seidel in any of them (255³ cloud
+//!   FLD-LP: 154 cycles at ω = 1, 125 at 1.2, 164 at 1.3; 1.5 costs the point source CDA one
+//!   or two). Pinned by `over_relaxed_smoothing_cuts_cycles` (cloud 13 → 10, 30 % vacuum noise
+//!   19 → 17, point source CDA 7 → 6, FLD-LP 9 → 8).
+//! * **Krylov acceleration, depth 3 ([`MgConfig::krylov`], `Krylov`).** Oosterlee & Washio's
+//!   nonlinear Krylov acceleration: φ becomes the combination of the last k + 1 cycle results
+//!   whose linearised residual is least (GMRES-like for CDA, a multisecant step for FLD),
+//!   restarted when a cycle grows R̄/j̄ by 1.5× or more (on any growth, CDA on shell_core
+//!   stalled). The plain cycle's rate on vacuum clouds is set by a few slow modes the
+//!   rediscretised coarse levels miss (CDA on the cloud: 0.48, 0.63, 0.72 per cycle at n = 31,
+//!   63, 127); plain → depth 3 cycles at n = 31…255: CDA cloud 20, 33, 48, 67 → 10, 13, 17, 22,
+//!   FLD-LP point source 11, 15, 18, 25 → 9, 12, 16, 20 (V cycles, ω = 1). Deeper histories
+//!   help FLD-LP on the cloud (depth 6, 12: 106, 85 cycles at 255³ against 154) at 2(k + 1)
+//!   fine vectors each and cost time where cycles are few. φ and r move into the history
+//!   without copies. Pinned by
+//!   `krylov_acceleration_cuts_cycles_where_vacuum_slows_the_plain_cycle` (measured from φ = 0:
+//!   cloud 14 → 10, noise 37 → 17, point source CDA 7 → 6, FLD-LP 8 → 7).
+//! * **Coarse D of FLD: FAS, then Picard once the FAS stalls ([`CoarseD::Auto`]).** On the
+//!   cloud at n = 127 the FAS oscillated with period 2 and stalled (R̄/j̄ ≈ 0.01–0.08) where
+//!   D = F(R)/σ swings by 60× on a 10⁻⁴ change of φ in a flat vacuum pocket; freezing the coarse
+//!   D at the mean of the fine D ([`CoarseD::Restricted`], the Picard linearisation) converges
+//!   there but is slower wherever the FAS converges (point source 10, 15, 21 cycles against 9,
+//!   12, 16). So the FAS runs until the stall rule fires, then Picard coarse levels (shell_core,
+//!   18³, 10⁻⁹: FAS `Stalled` after 14 cycles, the default 45 cycles, SOR 110 042 iterations).
+//!   Pinned by `the_picard_coarse_levels_take_over_where_the_fas_stalls`.
+//! * **Local relaxation around point-like sources ([`MgConfig::local_sweeps`] 8,
+//!   [`MgConfig::local_radius`] 0.5; `multigrid/local.rs`).** A one-voxel source holds
+//!   j = 1/Δl³ and sharpens with n; after each of the first 8 cycles 91–99.9 % of Σr² sat within
+//!   8 voxels of it at n = 255, and FLD-LP's cycles grew (8, 9, 10, 12 at n = 31…255).
+//!   Brandt's remedy is extra relaxation in a neighbourhood of fixed physical size: a box of
+//!   ⌈τ₀/(σΔl)⌉ voxels per axis (4, 8, 16, 32 at n = 31…255), relaxed after the coarse-grid
+//!   correction and after the post-smoothing, with D recomputed before each colour. FLD-LP
+//!   then takes 6, 6, 6, 7 cycles (was 8, 9, 10, 12); a box fixed in voxels, one place only,
+//!   or a set of voxels with R > 4 instead were worse. A box holding vacuum (σ below 1 % of
+//!   its largest, [`VACUUM_CONTRAST`]) is dropped: on 95 %-vacuum noise the boxes made FLD-LP
+//!   stall. Media without a voxel holding 1 % of the emission ([`POINT_SHARE`]) get none.
+//!   Pinned by `local_relaxation_keeps_the_point_source_flat_in_n` (8, 9, 10 → 6, 6, 6 at
+//!   n = 31, 63, 127) and `local::tests`.
+//! * **Full-multigrid start ([`MgConfig::full_multigrid`], on).** Starting the first cycle
+//!   from φ = 0 left in its residual the smooth error the coarse levels could have removed
+//!   first. With the FMG start (0.7–1.1 work units, counted in the first cycle), `multigrid_scaling
+//!   --full-multigrid false|true`, cycles at n = 31…255: point source CDA 4, 4, 4, 4 → 4, 4,
+//!   4, 3, FLD-LP 6, 6, 6, 7 → 5, 5, 5, 7; cloud CDA 8, 10, 12, 14 → 8, 9, 11, 13, FLD-LP 14,
+//!   20, 43, 125 → 12, 16, 38, 127; `ball_source` CDA 5, 4, 4, 4 → 4, 4, 3, 3, FLD-LP 7, 7, 7,
+//!   8 → 6, 6, 7, 7; `cloud_thin` and `cloud_floor` one cycle fewer at most sizes: fewer or as
+//!   many in 39 of 40 runs. The residual after the first cycle falls about tenfold on the
+//!   point source (127³ CDA 5.1·10⁻⁴ → 3.2·10⁻⁵). It needs the local boxes: without them it
+//!   leaves the residual at the source (127³ CDA 4.8·10⁻³ after the first cycle). Cubic
+//!   instead of linear interpolation of the FMG corrections on vertex axes (2026-12-07, a
+//!   build not kept) lowered that first residual only to 2.3·10⁻⁵ and saved no cycle: what
+//!   remains after the first cycle sits at the source (16 and 32 box sweeps: 1.3 and
+//!   1.1·10⁻⁵), not in the interpolation. Pinned by
+//!   `the_full_multigrid_start_cuts_the_first_residual` (33³, τ = 10, albedo 0.9: CDA 3.9·10⁻³
+//!   → 3.5·10⁻⁴, FLD-LP 8.2·10⁻³ → 7.6·10⁻⁴).
 //! * **Coarse Dirichlet layer.** On vertex axes it coincides with the fine one (zero
-//!   correction is exact); on cell axes it sits half a fine voxel further out and by default
-//!   its correction is zero. Extrapolating it linearly to zero at the parent layer's
-//!   position ([`MgConfig::extrapolated_layer`], cell axes only) is kept as an option; its
-//!   earlier measurement (see there) was made with the old, straddling coarsening.
-//! * **Cost per cycle (measured 2026-12-03, 2-core Intel Xeon with AVX-512, idle; f64, V(2,2),
-//!   `point_source --n 127 --boundary zero --tolerance 1e-6 --solver sor,multigrid`).** CDA
-//!   α = 0.5: SOR 277 iterations 2.17 s (1.87 s in a later run), multigrid 8 cycles (36.6
-//!   work units) 1.63 s with the parallel residual, 1.49 s once D is fixed for constant
-//!   limiters, 0.96 s with gather tables for the transfers instead of per-voxel allocations
-//!   (φ bit-identical throughout: rel. L2 vs SOR 9.0e-7 every time). FLD-LP (measured at
-//!   the 1.63 s stage): α = 0.5 SOR 497 it. 23.7 s vs 18 cycles 9.7 s; α = 0.99 SOR 974 it.
-//!   47.8 s vs 18 cycles 11.3 s. A CDA cycle still costs ≈ 15–18 SOR sweeps of wall time
-//!   (4.6 of them smoothing): the unpack/pack passes, residuals and transfers dominate, so
-//!   issue 15's ≥ 10× is not met.
-//! * **Cost per cycle, re-measured (2026-12-04, 2-vCPU AMD EPYC, quiet, AVX2 build,
-//!   `point_source --n 127 --boundary zero --tolerance 1e-6 --solver sor,multigrid --limiter
-//!   cda,lp`, every Fig 5 albedo, one run).** `perf` of the FLD-LP solve put 38 % of the
-//!   samples in `fresh_d` (a per-voxel index loop calling `lim.eval`), 22 % in the smoother,
-//!   10 % in the smoother's boundary-layer D and 8 % in `apply`; `fresh_d` and `apply` are
-//!   now row-sliced with the limiter dispatched once, and the boundary update runs in
-//!   parallel with no division: φ and every residual bit-identical (profiles and
-//!   `runs.csv` compared byte for byte), FLD-LP multigrid 6.6 → 4.2 s at α = 0.5. SOR vs
-//!   multigrid seconds (speed-up) at α = 0.1, 0.3, 0.5, 0.7, 0.9, 0.99: CDA 1.94/0.88
-//!   (2.2×), 1.61/0.70 (2.3×), 1.86/0.65 (2.9×), 1.40/0.65 (2.1×), 1.45/0.77 (1.9×),
-//!   1.33/0.73 (1.8×), always 8 cycles (36.6 work units vs 274–284 iterations); FLD-LP
-//!   18.6/4.54 (4.1×), 10.9/4.44 (2.5×), 11.3/4.19 (2.7×), 13.2/4.47 (2.9×), 15.4/4.23
-//!   (3.6×), 21.1/3.72 (5.7×), always 18 cycles (82.3 work units vs 472–974 iterations);
-//!   multigrid vs SOR relative L2 1.0–9.6·10⁻⁶ at this tolerance. 255³, α = 0.5: CDA SOR
-//!   551 it. 22.1 s vs 8 cycles 6.7 s (3.3×); FLD-LP SOR 2102 it. 312.8 s vs 25 cycles 48.0
-//!   s (6.5×). Issue 15's ≥ 10× is **not met**: the work-unit ratio is 7.5–7.8× (CDA) and
-//!   5.7–11.8× (FLD-LP) at 127³, 15× and 18× at 255³, so even a free cycle overhead would
-//!   not reach 10× for CDA at 127³; a cycle still costs 2.2× (FLD-LP) to 2.6× (CDA) its
-//!   smoothing (work units × SOR's seconds per iteration, α = 0.5).
-//! * **Where a cycle's time goes (2026-12-06, same 2-vCPU AMD EPYC, quiet; an instrumented
-//!   build timing each phase on the finest level, not kept; `point_source --n 127 --boundary
-//!   zero --albedo 0.5 --tolerance 1e-6`).** CDA, 8 cycles, 0.59 s: smoothing 0.142 s,
-//!   unpacking φ 0.028, in-cycle residual 0.047, R̂φ 0.039, residual restriction 0.033,
-//!   prolongation 0.070, coarser levels 0.089, end-of-cycle residual 0.080, error estimate
-//!   0.031. FLD-LP, 18 cycles, 3.59 s: smoothing 1.47, the three D-from-φ evaluations per
-//!   cycle (in the in-cycle residual, after the prolongation, in the end-of-cycle residual)
-//!   0.36 + 0.29 + 0.46 with their passes (one costs about a smoothing sweep: the limiter
-//!   dominates both), coarser levels 0.51. The transfers are now separable (one axis at a time
-//!   over contiguous rows, `restrict_separable`, `prolong_add`): R̂φ 0.039 → 0.019, residual
-//!   restriction 0.033 → 0.021, prolongation 0.070 → 0.020 s (CDA; FLD-LP 0.077 → 0.044,
-//!   0.072 → 0.036, 0.156 → 0.047), cycle counts and converged φ unchanged (not
-//!   bit-identical: the sums run in another order). One run each, SOR in the same run:
-//!   CDA multigrid 0.551 s vs SOR 1.113 s (2.0×), FLD-LP 3.59 s vs 10.22 s (2.8×). Smoothing
-//!   alone (36.6 and 82.3 work units at SOR's seconds per iteration) would be 0.147 and 1.69 s,
-//!   so even a free cycle overhead leaves CDA at 7.6× and FLD-LP at 6.0× here.
-//! * **After the sweep's odd row length and boundary batch (2026-12-06, `fld` module docs;
-//!   same 2-vCPU AMD EPYC, one run, `point_source --n 127 --boundary zero --tolerance 1e-6
-//!   --solver sor,multigrid --limiter cda,lp --albedo 0.5,0.99`).** SOR vs multigrid seconds:
-//!   CDA α = 0.5 1.22 vs 0.50 (2.4×), α = 0.99 1.13 vs 0.51 (2.2×); FLD-LP α = 0.5 8.81 vs
-//!   3.31 (2.7×), α = 0.99 17.97 vs 3.19 (5.6×); cycles, work units and φ unchanged (8 and 18
-//!   cycles; rel. L2 vs SOR 0.9–3.6·10⁻⁶). `perf` of the CDA solve then put 13–15 % of the
-//!   samples in the kernel's page clearing, `memset` and page faults: every cycle allocated
-//!   fresh fine-level vectors (φ unpacked, D, L(φ), the residual), 16 MB each at 127³. They
-//!   now come from a per-level pool (`Level::pool`; `apply_into`, `fresh_d_into` and
-//!   `CpuFld::mg_phi_into` overwrite every value) and the final φ is unpacked alone instead of
-//!   with D, σ and the absorption. φ, the residual histories and `profiles.csv` are
-//!   byte-identical; the same command, one run: CDA multigrid 0.434 s (α = 0.5) and 0.449 s
-//!   (0.99) against SOR 1.27 and 1.20 s (2.9×, 2.7×), FLD-LP 2.89 and 2.95 s against 8.67
-//!   and 17.70 s (3.0×, 6.0×). `memset` is gone from the profile; page clearing is down to
-//!   8 % of the samples, most of it the setup's first touch of its fields. The coarse
-//!   vectors of a visit (R̂φ, the restricted residual and right-hand side, the copy of R̂φ,
-//!   the correction) and the restriction's scratch planes were still fresh allocations:
-//!   pooled too (2026-12-06), the 255³ point source CDA solve took 437 000 instead of
-//!   495 000 page faults (most of the rest is the Krylov history's first touch, 8 fine
-//!   vectors) and 2.72–2.79 s instead of 2.82–2.85 s (three runs each, alternating); the
-//!   residuals are bit-identical.
-//! * **Full multigrid start: tried and rejected (2026-12-06, a build not kept).** Nested
-//!   iteration (each level's own problem with f_l = R f_{l−1}, solved from the coarsest up, one
-//!   V(2,2) per level, as the first cycle) cut the first cycle's R̄/j̄ only from 2.7–2.8·10⁻²
-//!   to 1.7–1.8·10⁻² on the point source (τ = 4, albedo 0.5): cycles to 10⁻⁶ CDA 8 → 7 at n =
-//!   31 and 63, FLD-LP 11 → 12 and 15 → 15; Fig 4 cloud FLD-LP 22 → 20 and 49 → 45 (CDA
-//!   stalled either way with the arithmetic coarse σ of then), seconds within ±6 %. The interpolated coarse answer carries the fine
-//!   grid's discretisation residual (largest at the source), so the start is not what limits;
-//!   FLD-LP's rate per cycle (0.3–0.4 at n = 63) is.
-//! * **Coarse σ: harmonic, not arithmetic ([`CoarseSigma`]; changed 2026-12-06).** The fine
-//!   operator couples voxels through ½(D_p + D_q), an arithmetic mean of D = F/σ, so a vacuum
-//!   voxel (D = 1/(3σ_ε), a near-perfect conductor) makes its faces conduct. A coarse voxel
-//!   whose σ is the arithmetic mean of its children's (∫σt kept, the first version) loses
-//!   that: one vacuum child among medium children gives an ordinary D. With the arithmetic
-//!   σ, CDA on the Fig 4 cloud (n = 17, 33) cut the residual ×0.05–0.1 in the first cycle
-//!   and then diverged (×2–6 per cycle, ended `Stalled`), and so did CDA on white noise with
-//!   30 % or 95 % vacuum and with 10⁴ contrast and no vacuum. With the harmonic σ (the coarse
-//!   D of a constant limiter is then the mean of the fine D) CDA converges on all of them to
-//!   10⁻⁹ (`tests/fld_multigrid.rs`: cloud 24³ 21 cycles, 30 % vacuum 52, 95 % vacuum 11;
-//!   the arithmetic σ on the cloud is pinned to stall there), on the datasets of
-//!   `convergence_check` (18³, tolerance 10⁻⁴: nebula stalled at rel. error 0.81 → 6 cycles
-//!   and 1.8·10⁻⁸ from SOR's tight solve; emissive_cloud stalled at 0.52 → 8 cycles, 1.3·10⁻⁷;
-//!   plume 12 → 7 cycles; cubes unchanged; shell_core still stalls, at 0.89 instead of a
-//!   residual of 10¹⁷) and on the `multigrid_scaling` cloud (n = 31, 63, 127: 20, 33, 48
-//!   cycles to 10⁻⁶, where it stalled at every n). The homogeneous point source is unchanged
-//!   (same cycles, 6–10). FLD is little affected (its D in vacuum is flux-limited, ≈ φ/|∇φ|,
-//!   whatever σ): Fig 4 cloud 22 → 23 (n = 31) and 49 → 48 (n = 63) cycles, datasets ±1
-//!   cycle, FLD-LP on shell_core stalls either way.
-//! * **Krylov acceleration of the cycles, depth 3 by default ([`MgConfig::krylov`],
-//!   `Krylov`; added 2026-12-06).** Oosterlee & Washio's nonlinear Krylov acceleration:
-//!   before each cycle, φ becomes the combination of the last k + 1 cycle results whose
-//!   linearised residual is least (for CDA, GMRES-like; for FLD a multisecant step), with a
-//!   restart whenever a cycle ends with a larger R̄/j̄ than the one before. *Why*: the plain
-//!   cycle's rate on vacuum clouds is set by a few slow modes the rediscretised coarse
-//!   levels do not see (CDA on the Fig 4 cloud: 0.48, 0.63, 0.72 per cycle at n = 31, 63,
-//!   127); a short Krylov history removes them. Measured (2026-12-06, 2-vCPU AMD EPYC 7002,
-//!   `multigrid_scaling`, tolerance 10⁻⁶, CPU f64, cycles at n = 31, 63, 127, 255 plain →
-//!   depth 3): CDA cloud 20, 33, 48, 67 → 10, 13, 17, 22 (255³: 30.7 → 11.1 s); CDA point
-//!   source 8, 8, 8, 8 → 6, 6, 7, 6; FLD-LP point source 11, 15, 18, 25 → 9, 12, 16, 20;
-//!   FLD-LP cloud 23, 48 → 17, 34 at n = 31, 63 and still `Stalled` at 127 and 255 (next
-//!   bullet). Depth 1, 2, 3, 6 on the cloud at n = 63 and 127 (CDA): 19, 27; 13, 19; 13, 17;
-//!   12, 16 cycles; FLD-LP at n = 63: 40, 40, 34, 30. A restart only when a cycle grows
-//!   R̄/j̄ by 1.5× or more (`RESTART_GROWTH`): restarting on any growth left CDA on
-//!   shell_core (18³) `Stalled` at 0.81, where it now converges in 16 cycles (plain cycles:
-//!   R̄/j̄ 0.70 after 100). Depth 3 keeps 8 fine-grid vectors
-//!   (1.1 GB at 255³, checked against the memory budget). Each cycle it reads k + 2
-//!   residuals (the Gram update) and k + 1 iterates (the combination); once φ moved into the
-//!   history instead of being copied and the error estimate's sums ran in parallel, the point
-//!   source, where it saves one or two cycles, takes as long as without it (127³ CDA 0.56–0.58
-//!   s either way over two runs each, 255³ 5.3 s against 5.6 s, one run each; seconds
-//!   include setup). `krylov_acceleration_cuts_cycles_where_vacuum_slows_the_plain_cycle`
-//!   (`tests/fld_multigrid.rs`) pins it. The GPU runs plain cycles ([`gpu`]).
-//! * **Coarse D of FLD: FAS, and Picard coarse levels once the FAS stalls
-//!   ([`CoarseD::Auto`], the default; 2026-12-06).** On the Fig 4 cloud at n = 127 FLD-LP
-//!   falls to R̄/j̄ ≈ 0.01 in 17 cycles and then oscillates with period 2 and grows (0.011 →
-//!   0.017 → 0.055 → 0.037 → 0.078, `Stalled`) while SOR converges (4347 iterations, 76 s).
-//!   A diagnostic build (not kept) put 30–60 % of Σr² in 20 vacuum voxels (σ = σ_ε) of one
-//!   pocket where φ is flat: there R = |∇φ|/(σφ) is O(1), so D = F(R)/σ swings between 0.5
-//!   and 30 from one cycle to the next on a 10⁻⁴ change of φ, and the residual, D times the
-//!   Laplacian, with it. Neither a damped coarse correction (0.7, 0.85) nor the θ-blend of D
-//!   after the prolongation removed the oscillation. Freezing the coarse D at the mean of the
-//!   fine D ([`CoarseD::Restricted`]: a Picard coarse problem, the coarse smoothers leave D
-//!   alone) does, but its rate (0.85–0.95) is worse wherever the FAS converges (point source
-//!   n = 31, 63, 127: 10, 15, 21 cycles against 9, 12, 16; cloud n = 31: 31 against 17), so
-//!   the default runs the FAS and switches to Picard coarse levels for the rest of the solve
-//!   when the stall rule fires (the Krylov history restarts, the stall rule starts afresh).
-//!   Measured: Fig 4 cloud n = 127, FLD-LP: `Stalled` at 0.078 after 24 cycles → converged
-//!   after 108 (24 FAS + 84 Picard); shell_core (18³, emission in the medium, tolerance 10⁻⁹):
-//!   FAS `Stalled` at 2.7 after 14 cycles, Picard alone 42 cycles, the default 45, SOR 110042
-//!   iterations (`the_picard_coarse_levels_take_over_where_the_fas_stalls`). The GPU runs the
-//!   FAS only ([`gpu`]); `Restricted` is CPU only.
-//! * **Where the defaults of 2026-12-06 stand (F(2, 2), Krylov depth 3, `CoarseD::Auto`;
-//!   same 2-vCPU AMD EPYC, one run each).** `multigrid_scaling` (tolerance 10⁻⁶), cycles at
-//!   n = 31, 63, 127, 255: point source CDA 5, 5, 5, 5 (was 8, 8, 8, 8), FLD-LP 9, 10, 11, 13
-//!   (11, 15, 18, 25); Fig 4 cloud CDA 10, 12, 14, 16 (20, 33, 48, 67), FLD-LP 14, 21, 54,
-//!   154 (23, 48, then `Stalled` at 127 and 255). 255³ seconds: point source CDA 4.2 (4.0),
-//!   FLD-LP 19.7 (30.6); cloud CDA 9.4 (30.7), FLD-LP 192 (`Stalled` after 20 cycles, 23.9 s);
-//!   rerun after the one-thread small levels (`SERIAL_VOXELS`, same cycles): 3.7, 19.1,
-//!   8.8, 191 s. `point_source
-//!   --n 127 --boundary zero --tolerance 1e-6 --solver sor,multigrid --limiter cda,lp`, SOR
-//!   vs multigrid seconds at α = 0.1, 0.3, 0.5, 0.7, 0.9, 0.99: CDA 1.21/0.51 (2.4×),
-//!   1.20/0.41 (2.9×), 1.09/0.40 (2.7×), 1.12/0.49 (2.3×), 1.12/0.44 (2.6×), 1.12/0.41
-//!   (2.8×), 5 cycles (26.1 work units) each; FLD-LP 13.6/2.44 (5.6×), 8.23/2.89 (2.8×),
-//!   8.65/2.38 (3.6×), 10.4/2.39 (4.4×), 11.8/2.35 (5.0×), 17.0/2.38 (7.2×), 11 cycles (57.5
-//!   work units) each; relative L2 to SOR 0.4–3.6·10⁻⁶. After `SERIAL_VOXELS` (same
-//!   command, α = 0.5 and 0.99, one run): CDA 1.22/0.366 (3.3×) and 1.13/0.353 (3.2×),
-//!   FLD-LP 8.35/2.24 (3.7×) and 16.4/2.20 (7.5×). The datasets of `convergence_check`
-//!   (18³, tolerance 10⁻⁴, f64, after the one-thread small levels of `SERIAL_VOXELS`):
-//!   SOR vs multigrid seconds, CDA nebula 0.0039/0.0049, emissive_cloud 0.0038/0.0056,
-//!   plume 0.0027/0.0048, cube (σt·Δl = 6) 0.0019/0.0052, shell_core 0.74/0.0096; FLD-LP
-//!   0.028/0.025, 0.030/0.023, 0.022/0.021, 0.010/0.018, shell_core 2.89/0.078. Multigrid is
-//!   therefore not faster everywhere it converges (small CDA grids), so no single solver
-//!   is the faster default; the default is a rule between the two (next bullet).
-//! * **The default solver: [`crate::fld::Solver::Auto`] (issue 15 item 4; 2026-12-06, 2-vCPU
-//!   AMD EPYC Zen 5, 32 MiB L3, triad 67–70 GB/s).** Multigrid from 100³ voxels for CDA and
-//!   63³ for FLD (the sizes where `multigrid_scaling` measured it faster on both of its
-//!   problems, [`crate::fld::auto_multigrid_voxels`]); below, SOR for at most 200 sweeps
-//!   ([`crate::fld::AUTO_SOR_SWEEPS`], about what a multigrid solve of those problems costs
-//!   in wall time), then multigrid from scratch; SOR from scratch wherever multigrid ends
-//!   without converging or cannot run (the Marshak face). `FldTrace::solver` and the
-//!   `solved_by` column of `point_source` say which ran. It is `point_source`'s default
-//!   (`--solver auto`; the `cda`/`fld` methods keep SOR, the paper's, and take it as the
-//!   `:auto` variant or `render --solver auto`). Measured, `figures --only
-//!   point_source,flux_limiters` before and after, one run each on the same idle host:
-//!   `point_source` (Fig 5, 127³, 18 solves) 47.0 → 10.5 s wall (solves 45.5 → 8.6 s, all by
-//!   multigrid), `flux_limiters` (63³, 66 solves) 19.8 → 10.0 s (solves 19.45 → 9.16 s: 60
-//!   by multigrid, 6 CDA by SOR); the errors against Grosjean moved by at most 1.3·10⁻⁵
-//!   relative (both solvers stop at R̄/j̄ < 10⁻⁶). With the first rule (10⁶ voxels for FLD
-//!   too) `flux_limiters` took 17.9 s: 49 of its 66 solves ran 200 SOR sweeps before
-//!   multigrid, which lost where SOR needed 201–300 (Kershaw α = 0.5: 0.17 → 0.29 s).
-//!   The full `figures` run with this default took 3988 s on that host; the two experiments
-//!   whose default changed were 66.8 s of the run before (1.7 %: the run's time is POP, the
-//!   path tracer, Mitsuba, and experiments that run both solvers by design), so the run as a
-//!   whole gained about 0.4 % (46.8 s saved, 29.2 s spent on the atlas's new `cda:mg` and
-//!   `fld:lp:mg` points).
-//!   Pinned by `auto_takes_each_branch_of_its_rule` (`tests/fld_multigrid.rs`) and
+//!   correction is exact); on cell axes it sits half a fine voxel further out and its
+//!   correction is zero. Extrapolating it linearly to zero at the parent layer's position
+//!   ([`MgConfig::extrapolated_layer`], cell axes only) is kept as an option; its only
+//!   measurement was made with the old all-cell coarsening.
+//! * **Pooled vectors and first touch.** Every fine and coarse vector of a visit comes from a
+//!   per-level pool, and new vectors are zeroed by every thread (`par_zeroed`): fresh 16 MB
+//!   vectors per cycle put 13–15 % of a 127³ CDA solve's samples in page clearing and faults.
+//!   The 255³ CDA point-source solve still takes about 437 000 page faults, mostly the Krylov
+//!   history's first touch; allocating the pool during the setup moves that time out of the
+//!   solve's clock without removing it, so it is not done.
+//! * **Setup.** `CpuMultigrid::new` builds every level's medium and its packed smoother
+//!   fields in parallel over z-slabs (127³ 0.085 s CDA, 0.076 s FLD-LP; 255³ 0.87 and 0.81 s,
+//!   the Fig 4 cloud); setup is not in the solve's seconds, nor in SOR's.
+//! * **The default solver: [`crate::fld::Solver::Auto`].** Multigrid is slower than SOR on
+//!   small grids (18³ datasets of `convergence_check`: CDA 0.0049 against 0.0039 s on nebula;
+//!   the 31³ cloud 0.4× with CDA), so the default is a rule: multigrid from 100³ voxels for CDA
+//!   and 63³ for FLD ([`crate::fld::auto_multigrid_voxels`], where `multigrid_scaling` measured
+//!   it faster on both its problems); below, SOR for at most 200 sweeps
+//!   ([`crate::fld::AUTO_SOR_SWEEPS`]) and then multigrid from scratch; SOR from scratch where
+//!   multigrid ends without converging or cannot run (the Marshak face). `FldTrace::solver` and
+//!   `point_source`'s `solved_by` column say which ran. `figures --only point_source,flux_limiters`:
+//!   47.0 → 10.5 s and 19.8 → 10.0 s wall; the full `figures` run gained about 0.4 % (3988 s;
+//!   its time is POP, the path tracer, Mitsuba and the experiments that run both solvers by
+//!   design). Pinned by `auto_takes_each_branch_of_its_rule` and
 //!   `auto_hands_a_slow_sor_solve_to_multigrid_in_the_experiment`.
-//! * **Issue 15's acceptance 3 at 255³, and what is left to try (2026-12-06, same 2-vCPU AMD
-//!   EPYC 7002, quiet, one run: `point_source --n 255 --boundary zero --tolerance 1e-6
-//!   --solver sor,multigrid --limiter cda,lp --albedo 0.5,0.99`, solve seconds without
-//!   setup).** SOR vs multigrid: CDA α = 0.5 551 iterations 20.6 s vs 5 cycles 2.88 s (7.2×),
-//!   α = 0.99 566 it. 21.0 s vs 5 cycles 2.75 s (7.6×); FLD-LP α = 0.5 2102 it. 271 s vs 13
-//!   cycles 18.6 s (14.6×), α = 0.99 4049 it. 508 s vs 11 cycles 15.9 s (32×); relative L2 to
-//!   SOR 0.8–4.3·10⁻⁶. FLD-LP is ≥ 10× at 255³, CDA is not at either size. At 127³ CDA cannot
-//!   be: SOR's 277 sweeps against the multigrid's 26.1 work units cap the ratio at 10.6× for a
-//!   cycle that cost nothing but its smoothing sweeps, and the cycle's own passes over the fine
-//!   grid (the Krylov combination and history, packing φ into the smoother and out, two
-//!   residuals, two restrictions, the prolongation, the error estimate) are not free: `perf`
-//!   of the 255³ CDA `point_source` run (one solve; its setup and the analytic comparison
-//!   are in the samples too) put 26 % of the samples in the smoothing sweeps, 10 % in the
-//!   restrictions and 9 % in the residuals. Setup is not in these seconds; it now
-//!   fills the fine level's packed fields in parallel over z-slabs and unpacks only σ and
-//!   the absorption back (φ and D were unpacked and dropped): `CpuMultigrid::new` on the
-//!   Fig 4 cloud, best of 3, 127³ CDA 0.109 → 0.085 s, FLD-LP 0.103 → 0.076 s; 255³ 1.15 →
-//!   0.87 s and 0.97 → 0.81 s (`CpuFld::new` alone at 255³: 0.50 → 0.30 s CDA); the
-//!   cycles' residuals are bit-identical. F(2, 1) instead of F(2, 2) (n = 31, 63, 127,
-//!   Krylov depth 3): point source FLD-LP the same 9, 10, 11 cycles and 2.33 → 2.04 s at
-//!   127³, but point source CDA 5 → 6 cycles (0.41 → 0.42 s), Fig 4 cloud CDA 10, 12, 14 →
-//!   11, 14, 16 (1.01 → 1.09 s) and FLD-LP 14, 21, 54 → 16, 24, 80 (11.3 → 12.4 s); F(3, 3)
-//!   and F(1, 1) on the FLD-LP point source: 8, 9, 10 cycles (2.64 s) and 10, 11, 15 (2.39 s).
-//!   F(2, 2) stays.
-//! * **First touch in parallel, one-pass packing, and the like-for-like time (2026-12-06,
-//!   another machine: 2-vCPU AMD EPYC family 26 model 2 (Zen 5), 32 MiB L3, triad 68–70 GB/s
-//!   in `cargo bench -p benches --bench diffusion` the same session).** `perf` of the 255³
-//!   CDA point-source solve (cycles 2–5) put 12 % of the samples in first-touch page faults
-//!   (and 8 % in the teardown's `munmap`, after the solve's clock stops): every new fine
-//!   vector (the Krylov history alone takes 8 as it fills) was zeroed by one thread's
-//!   `resize`. New vectors are now zeroed by every thread (`par_zeroed`) and the
-//!   packed/natural copies (`CpuFld::mg_set`, `CpuFld::unpack_into`) split and interleave a
-//!   row's two colours in one pass instead of a per-voxel index loop (per colour, for the
-//!   packing): φ bit-identical (hashes of φ on the 255³ point source, the 127³ FLD-LP point
-//!   source, the 95³ CDA and 63³ FLD-LP clouds against the build before), 255³ CDA solve
-//!   (an ad-hoc driver, with the teardown) 2.56–2.81 s over 6 runs before, 2.25–2.27 s over
-//!   3 with the parallel zeroing alone, 2.17–2.26 s over 2 with the packing too. SOR stops when R̄/j̄
-//!   falls below the tolerance; multigrid's stop also waits for its error estimate (the 5th
-//!   CDA cycle here: R̄/j̄ 4.0·10⁻⁷ after the 4th), so both now record the seconds until
-//!   R̄/j̄ itself first fell below the tolerance (`FldTrace::seconds_to_tolerance`, the
-//!   `seconds_to_tolerance` columns of `point_source` and `multigrid_scaling`), the
-//!   comparison issue 15's acceptance 3 names. Measured (`point_source --boundary zero
-//!   --tolerance 1e-6 --solver sor,multigrid`, one run each, every Fig 5 albedo 0.1, 0.3,
-//!   0.5, 0.7, 0.9, 0.99), SOR seconds / multigrid seconds (to R̄/j̄ < tol; full stop):
-//!   255³ CDA 16.46/1.488 (11.1×; 8.8×), 16.19/1.443 (11.2×; 9.0×), 17.11/1.447 (11.8×;
-//!   9.4×), 17.28/1.511 (11.4×; 9.1×), 17.49/1.447 (12.1×; 9.6×), 17.70/1.430 (12.4×;
-//!   9.8×), 543–566 SOR iterations against 5 cycles (4 to the tolerance);
-//!   255³ FLD-LP 127.90/9.058 (14.1×; 12.3×), 129.33/9.130 (14.2×; 12.4×), 123.06/6.83
-//!   (18.0×; 15.2×), 116.34/8.535 (13.6×; 11.9×), 176.81/8.665 (20.4×; 17.8×), 249.84/8.104
-//!   (30.8×; 28.6×), 1961–4050 SOR iterations against 13 cycles (11 at α = 0.99);
-//!   127³ CDA (5.0×; 4.0×), (3.6×; 3.0×), (4.4×; 3.5×), (4.6×; 3.6×), (4.7×; 3.7×), (4.5×;
-//!   3.5×): SOR 0.78–0.87 s for 274–284 iterations, multigrid 0.17–0.22 s to the tolerance;
-//!   127³ FLD-LP (6.6×; 6.0×), (3.3×; 3.0×), (3.5×; 3.2×), (3.9×; 3.5×), (4.6×; 4.2×), (6.2×;
-//!   5.7×): SOR 2.80–5.77 s for 472–974 iterations, multigrid 0.85–0.93 s (11 cycles) to the
-//!   tolerance (10 cycles, 52.3 work units); φ within 0.4–4.3·10⁻⁶ relative L2 of SOR's at
-//!   both sizes (the largest: 255³ FLD-LP, α = 0.99). So at 255³ the ≥ 10× of
-//!   acceptance 3 holds for CDA and FLD-LP at every albedo (to the tolerance; FLD-LP also by
-//!   the full stop, CDA there 8.8–9.8×), and at 127³ it does not:
-//!   there SOR's 274–284 sweeps against 4 cycles' 20.9 work units cap the ratio near 13× for
-//!   CDA even for free transfers (FLD-LP: 472–974 sweeps against 52.3 work units, 9–19×),
-//!   and a work unit of multigrid still costs 2.6–3.6 (CDA) and 2.6–3.0 (FLD-LP) SOR sweeps
-//!   of wall time (residuals, transfers, packing, the Krylov history).
-//! * **127³ after the fused sweeps, and where a CDA solve's time goes (2026-12-06, Zen 5
-//!   host).** The sweeps now run both colours in one fused pass (`fld` module docs, "Fused
-//!   colour passes"); SOR and the smoother gain alike. `point_source --n 127 --boundary zero
-//!   --tolerance 1e-6 --solver sor,multigrid --limiter cda,lp`, every Fig 5 albedo, one run,
-//!   SOR / multigrid seconds to the tolerance: CDA 4.1–4.8× (SOR 0.78–0.92 s for 274–284
-//!   sweeps, multigrid 0.16–0.21 s), FLD-LP 3.4–6.9× (SOR 3.0–5.6 s for 472–974 sweeps,
-//!   multigrid 0.80–0.89 s). An instrumented build (timers around each step of the finest
-//!   level, not kept; CDA, α = 0.5, 5 cycles, a 0.264 s solve of which the timed steps were
-//!   242 ms) put: fine smoothing 62 ms (23 % of the solve), the coarser levels 48 ms (18 %),
-//!   the two fine residuals 44 ms (17 %; the in-cycle one costs twice the end-of-cycle one,
-//!   its vectors still being first touched while the Krylov history fills), restrictions,
-//!   prolongation and coarse packing 32 ms (12 %), the Krylov combination, Gram update and
-//!   re-packing 28 ms (11 %), unpacking and packing φ 19 ms (7 %), error estimate and the
-//!   residual's sum 9.5 ms (4 %). Four cycles reach the tolerance: their fine smoothing
-//!   alone is ≈ 50 ms (15.8× against SOR's 0.78 s), and with the coarser levels as they are
-//!   ≈ 88 ms (8.9×), so at 127³ even free transfers, residuals and Krylov steps would leave
-//!   CDA below 10× unless the coarse levels got cheaper too.
-//!   **255³ after the fused sweeps** (same command with `--n 255`, one run; CDA at every
-//!   albedo, FLD-LP at α = 0.1 and 0.7, the two lowest ratios of the run before): CDA SOR
-//!   12.2–15.4 s for 543–566 sweeps (16.2–17.7 s before) against multigrid 1.36–1.74 s to
-//!   the tolerance (1.43–1.51 s before): **8.1–11.3×** (was 11.1–12.4×), 6.5–9.0× by the
-//!   full stop; FLD-LP SOR 104.5 and 97.8 s (2019 and 1961 sweeps) against 6.76 and 6.82 s:
-//!   15.4× and 14.3× (was 14.1× and 13.6×). The faster sweep is all of SOR's time but only
-//!   a quarter of a CDA cycle's, so the CDA ratio fell below 10× at four of six albedos. A
-//!   second CDA run right after (quieter: SOR 12.1–13.5 s, multigrid 1.25–1.35 s) read
-//!   9.7–10.5×: CDA at 255³ now sits at the 10× line.
-//!   Of what else a 255³ CDA solve spends, first touch is large: 437 000 page faults during
-//!   the solve (1.8 GB; counted from `/proc/self/stat` in an ad-hoc driver), about what the
-//!   fine vectors the solve allocates add up to (the Krylov history's 8 alone are 1.06 GB),
-//!   and the whole process, setup and teardown included, spent 1.7 of its 4.8 CPU seconds
-//!   in the kernel (`perf stat`). Touching them in the setup instead would only move
-//!   that time out of the solve's clock, so it was not done.
-//! * **Local relaxation around point-like sources ([`MgConfig::local_sweeps`] = 8 in a box of
-//!   optical half-width [`MgConfig::local_radius`] = 0.5; `multigrid/local.rs`; 2026-12-07, 2-vCPU
-//!   AMD EPYC Zen 5, 32 MiB L3).** *Why*: FLD-LP's cycles on the point source grew with n (8,
-//!   9, 10, 12 at n = 31…255), and a build that printed where Σr² sits after each cycle (not
-//!   kept) put 91–99.9 % of it within 8 voxels of the source at n = 255 for the first 8 cycles
-//!   (the one-voxel source holds j = 1/Δl³; R ≈ 1/(σr) near it grows as Δl shrinks). Brandt's
-//!   remedy for such singularities is extra relaxation in a neighbourhood of fixed physical
-//!   size. Measured on an ad-hoc driver (`point_source` medium, τ = 4, albedo 0.5, cycles to
-//!   R̄/j̄ < 10⁻⁶ at n = 31, 63, 127, 255), FLD-LP: none 8, 9, 10, 12; a box of 8 voxels and 8
-//!   sweeps after the coarse-grid correction 6 (n = 63), 8 (127); also after the
-//!   post-smoothing 5, 6, 7, 9 (a fixed box in voxels does not keep up with n: at n = 255 the
-//!   residual then sat 17–32 voxels out, at the box's edge); a box of n/8 voxels (optical
-//!   half-width 0.5) at both places 6, 6, 7, 7 and after the correction only 6, 6, 7, 9;
-//!   before the pre-smoothing instead: no better (n = 63: 9, first residual 2.2; n = 127: 11); selecting the
-//!   voxels with R > 4 instead of a box (the Dirichlet layer's neighbourhood, where φ → 0,
-//!   is selected too) 6, 7, 7, 8. As built (the box ⌈τ₀/(σΔl)⌉ = 4, 8, 16, 32 voxels, at both
-//!   places, D recomputed before each colour; before each sweep instead, the 255³ solve stopped
-//!   after 8 cycles instead of 7, both below the tolerance after the 6th, for 5.9 instead of
-//!   8.3 ms per box visit at 127³): FLD-LP **6, 6, 6, 7** (17 % spread; was 50 %),
-//!   CDA 4, 4, 4, 4 cycles with R̄/j̄ below 10⁻⁶ after the 3rd at n = 31, 127, 255 (was 5, 5,
-//!   5, 5 and the 4th). Seconds to the tolerance, alternating builds, two runs each, albedo
-//!   0.99: 127³ CDA 0.192–0.194 → 0.176–0.178 s, FLD-LP 1.245–1.248 → 0.809–0.819 s (10 → 7
-//!   cycles); 255³ CDA 1.40–1.47 → 1.26 s, FLD-LP 10.3–10.4 → 8.0–8.4 s (12 → 8 cycles). The
-//!   boxes cost 8 sweeps × 2 × 1.6 % of the grid per cycle plus their D, which is why CDA
-//!   gains less than its cycle: 4 sweeps and radius 0.5 took 8, 9 cycles at n = 127, 255
-//!   (0.90, 7.6 s), 8 sweeps and radius 0.25 7, 8 (0.87, 7.3 s), 16 and 0.25 7, 8 (0.77,
-//!   7.3 s): within the host's noise of the default. CDA alone would
-//!   do with fewer (point source, albedo 0.5, two alternating runs each, seconds to the
-//!   tolerance, 8 → 2 sweeps): 127³ 0.186 → 0.169–0.179 s, 63³ 0.026 → 0.023 s, the same 4
-//!   cycles, but 5 instead of 4 at 31³; at 255³ and albedo 0.1, 4 and 2 sweeps took 1.27–1.32
-//!   and 1.24–1.33 s against 1.41–1.42 s. One default for every limiter is kept: FLD-LP
-//!   needs the 8, and CDA's gain (4–13 %) is smaller than the host's noise between runs. Media without a voxel holding 1 % of
-//!   the emission (the Fig 4 clouds of `multigrid_scaling`) get no box and run exactly as
-//!   before. A box that holds vacuum (a σ below 1 % of its largest, [`VACUUM_CONTRAST`]) is
-//!   dropped: on white noise with 95 % vacuum (17³, tolerance 10⁻⁹) the boxes made FLD-LP
-//!   stop `Stalled` after 38 cycles where it converges in 27 without them (30 % vacuum: 35
-//!   against 34; found in review, 2026-12-07); blending the boxes' D with the smoother's θ
-//!   instead converged there (18 and 28 cycles) but stopped the point source one cycle later
-//!   (6, 6, 7, 8 at n = 31…255). The 18³ datasets of `convergence_check` do get boxes (tolerance 10⁻⁴, f64,
-//!   cycles before → after): nebula CDA 5 → 4, every FLD limiter 9 → 8; emissive_cloud CDA
-//!   6 → 5, every FLD limiter 8 → 7; plume CDA 6 → 5, FLD 8 → 7 (max: 8 either way); cube
-//!   τ = 0.6 CDA, LP, Kershaw, Larsen 6 → 5 (sum 5, max 6 either way); the optically
-//!   thicker cubes unchanged; shell_core CDA 12 → 11, FLD-LP 38 → 39, sum 32 → 32,
-//!   max 64 → 48, Kershaw 36 → 37, Larsen 47 → 39; all converge. Issue 15's acceptance 3
-//!   with it (`point_source --boundary zero --tolerance 1e-6 --solver sor,multigrid`, one
-//!   run each, every Fig 5 albedo, SOR / multigrid seconds to the tolerance; full stop in
-//!   brackets): 127³ CDA 3.9–6.5× (3.0–4.9×; SOR 0.76–1.27 s for 274–284 sweeps on a noisy
-//!   host), FLD-LP 5.9–18.0× (5.0–13.2×; 6 or 7 cycles); 255³ CDA 8.4–11.8× (6.2–8.6×; 4
-//!   cycles, 3 to the tolerance; 10.5–11.8× at five albedos, 8.4× at α = 0.1 where the
-//!   multigrid solve took 1.56 s against 1.22–1.27 s at the others); φ 0.7–3.2·10⁻⁶ from
-//!   SOR's (relative L2). Pinned by `local_relaxation_keeps_the_point_source_flat_in_n`
-//!   (`tests/fld_multigrid.rs`: 8, 9, 10 → 6, 6, 6 at n = 31, 63, 127) and the box rule by
-//!   `local::tests`.
-//! * **Full-multigrid start ([`MgConfig::full_multigrid`], on by default; 2026-12-07, 2-vCPU
-//!   AMD EPYC Zen 5, 32 MiB L3).** The first cycle used to start from φ = 0, so its residual
-//!   still held the smooth error the coarse levels could have removed beforehand. Now the FAS
-//!   problem at the starting φ is set up on every level, solved coarsest first, and each
-//!   level's correction is prolongated to the next finer one and given one cycle there
-//!   (nested iteration, Brandt's FMG). The solve's cycles then begin. This costs 0.7–1.1 work
-//!   units, counted in the first cycle. Measured with `multigrid_scaling --full-multigrid
-//!   false|true` (defaults otherwise, f64, tolerance 10⁻⁶, one run each, SOR off), cycles at
-//!   n = 31, 63, 127, 255 from φ = 0 → FMG: point source CDA 4, 4, 4, 4 → 4, 4, 4, 3, FLD-LP
-//!   6, 6, 6, 7 → 5, 5, 5, 7; Fig 4 cloud CDA 8, 10, 12, 14 → 8, 9, 11, 13, FLD-LP 14, 20,
-//!   43, 125 → 12, 16, 38, 127; `ball_source` CDA 5, 4, 4, 4 → 4, 4, 3, 3, FLD-LP 7, 7, 7, 8 →
-//!   6, 6, 7, 7; `cloud_thin` CDA 7, 8, 9, 9 → 6, 7, 8, 9, FLD-LP 10, 12, 14, 17 → 9, 10, 12,
-//!   16; `cloud_floor` CDA 6, 7, 8, 8 → 6, 6, 7, 8, FLD-LP 9, 9, 11, 12 → 8, 8, 10, 11. That is
-//!   fewer or as many cycles in 39 of the 40 runs (the exception, the 255³ cloud with FLD-LP,
-//!   is set by the peak of D below). The residual after the first cycle falls about tenfold
-//!   on the point source (127³ CDA 5.1·10⁻⁴ → 3.2·10⁻⁵, FLD-LP 1.3·10⁻² → 7.4·10⁻⁴). That
-//!   is what acceptance 3 needed. Seconds to R̄/j̄ < 10⁻⁶ on the point source (same runs):
-//!   CDA 127³ 0.147 → 0.127 s, 255³ 1.97 → 0.86 s (R̄/j̄ below 10⁻⁶ after 2 cycles instead
-//!   of 3); FLD-LP 127³ 0.52 → 0.42 s, 255³ 5.11 → 4.54 s. Alternating runs of an ad-hoc
-//!   driver (127³ CDA, albedo 0.5, six runs each) gave 0.166–0.195 s from φ = 0 and
-//!   0.128–0.142 s with FMG. The FMG start and the local boxes work together: without the
-//!   boxes (`local_sweeps` 0) the FMG start leaves the point source's residual at the source
-//!   (127³ CDA: 4.8·10⁻³, 2.2·10⁻⁵, 3.4·10⁻⁷ after cycles 1–3 against 3.2·10⁻⁵, 3.2·10⁻⁷ with
-//!   them; 0.17–0.22 s to the tolerance against 0.14–0.15 s, two alternating pairs; 255³ 3
-//!   cycles to the tolerance against 2). Issue 15's acceptance 3 with it (`point_source --boundary zero
-//!   --tolerance 1e-6 --solver sor,multigrid`, every Fig 5 albedo, one run per size, SOR /
-//!   multigrid seconds to the tolerance, setup excluded on both sides): 127³ CDA 5.6–8.0×
-//!   (SOR 0.87–1.21 s for 274–284 sweeps, multigrid 0.11–0.18 s, R̄/j̄ below 10⁻⁶ after 2
-//!   cycles), FLD-LP 6.5–13.5× (SOR 4.3–7.8 s, multigrid 0.45–0.74 s, 5 or 6 cycles with
-//!   the stop); 255³ CDA 9.1–15.6× (SOR 12.7–13.3 s for 543–566 sweeps, multigrid 0.85–1.41
-//!   s, 2 cycles; the two lowest albedos 9.1× and 9.2×), FLD-LP at albedo 0.5 19.6× (SOR 2078
-//!   sweeps in 111.1 s, multigrid 5.68 s, 7 cycles with the stop); φ 0.7–3.1·10⁻⁶ from SOR's
-//!   (relative L2; FLD-LP at 255³ 1.8·10⁻⁶). A 127³ CDA
-//!   solve to the tolerance is now the FMG start and two cycles, 30–50 SOR sweeps of wall
-//!   time against SOR's 277, so 10× there needs a cycle that costs little more than its
-//!   smoothing. Where a 127³ CDA cycle's time goes now (an instrumented build, not kept; four
-//!   cycles from φ = 0, albedo 0.5, three runs, 0.22–0.23 s): the 16 fine sweeps 56–60 ms,
-//!   the two fine residuals per cycle 35–37 ms (22–25 ms with Krylov depth 0: the rest is the
-//!   first touch of the vectors the history keeps), the coarse levels 34–39 ms, the local
-//!   boxes 21–25 ms, the transfers 17–21 ms, packing and unpacking φ 10–11 ms, the Krylov
-//!   sums and combination 8–10 ms, the error estimate 5–6 ms. Starting the Krylov history only
-//!   after a cycle that reduces R̄/j̄ by less than 20× (tried, not kept) left the 127³ CDA
-//!   time to the tolerance within the noise (0.112–0.134 s against 0.115–0.135 s, three
-//!   alternating pairs) and, measured without the FMG start, cost the 63³ `ball_source` CDA
-//!   a cycle (4 → 5). Nor does F(1, 2) pay as a default with the FMG start (CDA, albedo 0.5,
-//!   one run each, F(2, 2) → F(1, 2), cycles and seconds to the tolerance at n = 31, 63, 127,
-//!   255): the point source keeps 4, 4, 4 cycles and 3 → 4 at 255 (1.62 → 1.00 s there,
-//!   R̄/j̄ below 10⁻⁶ after 2 cycles either way; at 127³ 0.145–0.193 → 0.115–0.118 s over
-//!   two alternating pairs), but the Fig 4 cloud takes 8, 9, 11, 13 → 9, 11, 13, 16 cycles
-//!   (0.58 → 0.65 s at 127³, 6.5 → 6.7 s at 255³) and `ball_source` 4, 4, 3, 3 → 5, 4, 4, 4
-//!   (1.72 → 2.22 s at 255³). The FMG start ends each level with one cycle of the solve's
-//!   kind (F). The GPU starts from φ = 0 (`MgConfig::plain_fas`), and so does
-//!   [`CoarseOp::Galerkin`], whose coarse levels solve for corrections only. Pinned by
-//!   `the_full_multigrid_start_cuts_the_first_residual` (`tests/fld_multigrid.rs`).
-//! * **Known limitations (measured, not fixed).** Cycles still grow with n on the vacuum
-//!   cloud (CDA 10 → 16 over n = 31…255, FLD-LP 14 → 154; with ω = 1.2, 8 → 14 and 14 →
-//!   125; at n = 127 with V cycles, 84 of 108 were Picard cycles after the FAS stalled). For
-//!   FLD-LP on the point source they grew too (9 → 13; with ω = 1.2, 8 → 12) until the local
-//!   relaxation (above: 6, 6, 6, 7): the ≤ 25 % of issue 15 then held on the point source
-//!   for CDA and FLD-LP, not on the cloud. With the FMG start (above) R̄/j̄ falls below 10⁻⁶
-//!   after 3, 3, 2, 2 cycles (CDA: the count falls with n, 50 % as a spread) and 4, 4, 4, 5
-//!   (FLD-LP, 25 %) at n = 31…255 (`multigrid_scaling`'s `steps_to_tolerance`). Local relaxation does not fix the cloud (2026-12-07,
-//!   ad-hoc builds, not kept; cycles to R̄/j̄ < 10⁻⁶): 8 extra sweeps twice per cycle on its
-//!   surface shell (the voxels within 2 of a vacuum/medium face: 82 432, 4.0 % of the grid at
-//!   127³; the voxels on either side of a face held 25–33 % of Σr² after each cycle, the
-//!   vacuum 36–43 % and the cloud's inside 25–37 %) took
-//!   CDA 8, 10, 12 → 8, 10, 11 cycles at n = 31, 63, 127. Boxes that follow the largest
-//!   residual (after every cycle a box of half-width 8 around the voxel with the largest |r|,
-//!   up to 8 boxes kept; the residual-threshold sets of the D-peak bullet below were the
-//!   earlier form of this) took FLD-LP 14, 20, 43, 125 → 11, 19, 27, 106 cycles at n =
-//!   31…255, but 107 s instead of 68–72 s at 255³: the D peak moves and multiplies as n grows.
-//!   Nor does a Jacobi-smoothed prolongation of the correction ((I − ωD⁻¹A)P with the
-//!   rediscretised coarse levels, ω = 0.67 or 1): CDA on the cloud 8, 10, 12 → 18, 41–42,
-//!   80–81 cycles. Transparent huge pages (the host's THP switched from `madvise` to `always` for
-//!   a test) made the 255³ CDA point source's time to the tolerance noisier, not reliably
-//!   shorter: 1.27–2.42 s against 1.44–1.83 s over six runs each. On small vacuum clouds SOR is faster (CDA n =
-//!   31: 0.009 s against 0.023 s, 0.076 s before `SERIAL_VOXELS`; `multigrid_scaling` with SOR up
-//!   to n = 127: CDA on the cloud 0.4×, 0.7×, 1.6× at n = 31, 63, 127). A CDA work unit of multigrid costs about 3.9 SOR sweeps of
-//!   wall time (127³, α = 0.5: 0.40 s / 26.1 work units against SOR's 1.09 s / 277 sweeps;
-//!   transfers, residuals, packing), so the ≥ 10× of issue 15 is not met at 127³.
-//!   FLD-LP on white noise with 95 % vacuum still stalls in f32 (the GPU test). shell_core
-//!   (`convergence_check`) now converges (previous bullets). Operator-dependent
-//!   (Galerkin-type) coarse coefficients and a Newton-type treatment of the limiter's
-//!   nonlinearity remain the candidate fixes for the cloud's FLD-LP growth, whose cause is
-//!   measured below (the peak of D at a critical point of φ in the vacuum).
-//!   **W-cycles do not help (2026-12-06, same 2-vCPU AMD EPYC, a W(2, 2) variant built and
-//!   measured, not kept; default Krylov depth 3, f64, R̄/j̄ < 10⁻⁶):** F → W cycles and
-//!   seconds: cloud CDA n = 31, 63, 127: 10, 12, 14 → 10, 12, 14 (1.00 → 1.09 s at 127);
-//!   cloud FLD-LP n = 63: 21 → 21; point source FLD-LP (α = 0.5) n = 63, 127: 10, 11 → 10,
-//!   11 (1.81 → 1.87 s). Solving the coarse problems more exactly changes no cycle count,
-//!   so the growth with n comes from the two-grid step itself (the rediscretised coarse
-//!   operator against the fine one, or the smoother), not from the recursion. More
-//!   smoothing (same runs, F-cycles, cycles at n = 31, 63, 127, 255) lowers the counts but
-//!   not their growth: cloud CDA F(2, 2) 10, 12, 14, 16 (+60 %), F(4, 4) 7, 10, 10, 12
-//!   (+71 %; 9.2 s at 255), F(8, 8) 6, 7, 8, 9 (+50 %; 10.5 s); point source FLD-LP F(2, 2)
-//!   9, 10, 11, 13 (+44 %), F(4, 4) 7, 8, 9, 10 (+43 %; 16.2 s at 255 against 14.5 s). What
-//!   grows with n is then the coarse-grid correction's error, which points at the
-//!   rediscretised coarse operator (the Galerkin-type candidate above), not at the smoother.
-//!   **Two controls say where FLD-LP's growth comes from (2026-12-06, Zen 5 host,
-//!   `multigrid_scaling`'s `ball_source` and `cloud_thin`, cycles at n = 31, 63, 127, 255).**
-//!   The point source's one emitting voxel (j = 1/Δl³) is a source that sharpens with n, so
-//!   its discrete problems do not converge to one continuous problem: the same unit power
-//!   over a ball of radius 0.1 ([`crate::scenes::ball_source`]) takes FLD-LP 7, 7, 8, 8
-//!   cycles (+14 %; the one-voxel source 9, 10, 11, 13, +44 %) and CDA 5, 5, 5, 4 (+25 %):
-//!   grid-independent within issue 15's 25 % for both
-//!   (`cycles_do_not_grow_with_n_for_a_source_of_fixed_size` pins n = 33, 65). The cloud's
-//!   growth is mostly its vacuum, where FLD's D → φ/|∇φ| and the equation becomes a
-//!   first-order (free-streaming) one that a point smoother with isotropic coarsening does not
-//!   resolve: with the vacuum filled by σt = 0.5 ([`crate::scenes::cloud_in_thin_medium`])
-//!   FLD-LP takes 11, 13, 15, 19 (+73 %, against 14, 21, 54, 154 in vacuum) and CDA 8, 9, 9,
-//!   10 (+25 %, against 10, 12, 14, 16). So acceptance 2 holds for resolved sources without
-//!   vacuum, and not for FLD-LP where the medium is optically thin (+73 %) or vacuum.
+//! * **GPU ([`gpu`], issue 15 item 2).** The same cycle in f32 on the device, as plain FAS
+//!   ([`MgConfig::plain_fas`]: no Krylov history, Picard fallback, local boxes or FMG start):
+//!   the smoother of every level is `fld.wgsl`'s red-black sweep itself, the transfers (D from
+//!   φ, residual, restriction of φ and of the residual, the FAS right-hand side, prolongation)
+//!   are `multigrid.wgsl`, one compute pass per cycle, three sums read back per cycle. On
+//!   lavapipe (`tests/fld_multigrid_gpu.rs`, tolerance 10⁻⁵) on the 33³ point source and a
+//!   24 × 20 × 27 source block, for CDA and all five limiters, the GPU takes the same number
+//!   of cycles as the CPU-f32 plain FAS in all 12 cases (4–6) and agrees with it to
+//!   1.3–12·10⁻⁷ relative L2 (conformance bound 10⁻³); on the Fig 4 cloud CDA both stop
+//!   `Stalled` at f32's floor (R̄/j̄ ≈ 10⁻⁴).
+//!
+//! ## What a solve costs against SOR (issue 15, acceptance 3)
+//! Seconds until R̄/j̄ first fell below 10⁻⁶, setup excluded on both sides, SOR / multigrid,
+//! `point_source --boundary zero --tolerance 1e-6 --solver sor,multigrid`, every Fig 5 albedo,
+//! one run per size (2026-12-07, Zen 5 host):
+//!
+//!
+//! | size | limiter | speed-up | SOR | multigrid |
+//! |---|---|---|---|---|
+//! | 127³ | CDA | 5.6–8.0× | 0.87–1.21 s, 274–284 sweeps | 0.11–0.18 s, FMG + 2 cycles |
+//! | 127³ | FLD-LP | 6.5–13.5× | 4.3–7.8 s, 472–974 sweeps | 0.45–0.74 s, 4 cycles (5–6 with the stop) |
+//! | 255³ | CDA | 9.1–15.6× | 12.7–13.3 s, 543–566 sweeps | 0.85–1.41 s, FMG + 2 cycles |
+//! | 255³ | FLD-LP (α = 0.5) | 19.6× | 111.1 s, 2078 sweeps | 5.68 s, 7 cycles with the stop |
+//!
+//! φ agrees with SOR's to 0.7–3.1·10⁻⁶ relative L2. At 127³ the ≥ 10× of acceptance 3 is not
+//! met for CDA: a solve to the tolerance is 11.9 work units (the FMG start and two cycles with
+//! their boxes), so a cycle that cost only its sweeps would allow about 23× against SOR's 277
+//! sweeps, but a work unit still costs about 3 SOR sweeps of wall time (9–15 ms against 3.1–4.4
+//! ms). Where the time of four 127³ CDA cycles from φ = 0
+//! goes (albedo 0.5, an instrumented build not kept, three runs, 0.22–0.23 s): the 16 fine
+//! sweeps 56–60 ms, the two fine residuals per cycle 35–37 ms (22–25 ms with Krylov depth 0,
+//! the rest the first touch of the vectors the history keeps), the coarse levels 34–39 ms, the
+//! local boxes 21–25 ms, the transfers 17–21 ms, packing and unpacking φ between the
+//! smoother's red-black layout and the natural one 10–11 ms, the Krylov sums and combination
+//! 8–10 ms, the error estimate 5–6 ms. F(1, 1) cycles show the same (2026-12-07, an ad-hoc
+//! driver, FMG start and four cycles, two runs each): 12.1 work units in 0.23–0.24 s against
+//! 22.9 in 0.25–0.28 s with F(2, 2), so most of a cycle's time is its passes over the fine
+//! grid other than smoothing. `multigrid_scaling`
+//! reports multigrid's speed-up over SOR at every n (its `seconds` table).
+//!
+//! ## Known limitations (measured, not fixed)
+//! * **Cycles grow with n on the vacuum cloud** (acceptance 2, `results/multigrid_scaling`):
+//!   cycles to R̄/j̄ < 10⁻⁶ at n = 31…255, CDA 7, 9, 11, 13, FLD-LP 12, 16, 38, 125; against
+//!   the point source (CDA 3, 3, 2, 2; FLD-LP 4, 4, 4, 5) and `ball_source` (CDA 4, 3, 3, 3;
+//!   FLD-LP 5, 6, 7, 7). On the cloud with CDA the first two cycles leave R̄/j̄ above its
+//!   starting 1 (127³: 2.3 and 1.3 after them), and the reduction per cycle after that is
+//!   0.03–0.14 at n = 31 and 0.1–0.4 at n = 127 (2026-12-07, ad-hoc driver). The rediscretised coarse operator at 2·10⁴ contrast is the cause for CDA: W-cycles
+//!   (solving the coarse problem more exactly) change no count, more smoothing lowers the
+//!   counts but not their growth (F(8, 8): 6, 7, 8, 9), deeper Krylov histories (8, 16) save one
+//!   cycle at 127³, and Galerkin coarse operators halve the growth (below).
 //! * **Why the cloud's FLD-LP cycles grow: the peak of D at a critical point of φ in the
-//!   vacuum (2026-12-07, 2-vCPU AMD EPYC Zen 5, 32 MiB L3; an ad-hoc driver over
-//!   [`CpuMultigrid`] and a diagnostic build, not kept; defaults, f64, R̄/j̄ < 10⁻⁶).** At
-//!   n = 127 the solve no longer stalls (54 cycles of the FAS alone; `Auto` does not switch),
-//!   but it converges at about 0.8 per cycle. From cycle 7 on, 94–99 % of Σr² sat in vacuum
-//!   voxels (56–86 % in those with no medium neighbour; sampled every sixth cycle), the
-//!   largest residuals at (52–55, 46–49, 104–105), just
-//!   outside the cloud's surface, where φ is flat (0.0688) and D is 5–8 against a median
-//!   vacuum D of 0.25. That is a critical point of φ (∇φ ≈ 0): there R = |∇φ|/(σ_ε φ) falls
-//!   and D = F(R)/σ_ε rises towards 1/(3σ_ε) = 333, and the nearer a voxel centre lies to the
-//!   point, the higher its D. The largest interior D at the converged φ
-//!   ([`diffusion_field`]) is 0.65, 1.76, 9.8 and 111 at n = 31, 63, 127, 255, always at the
-//!   same place (its voxel's centre at (0.43–0.44, 0.37–0.38, 0.82–0.86) of the unit cube),
-//!   and the cycles are 14, 21, 54, 154. The lagged D of the smoother (and of Picard coarse levels) leaves out D's
-//!   dependence on φ, which near such a point is as large as the operator itself, and the
-//!   coarse levels do not see the peak: the discrete problems carry a coefficient contrast
-//!   that grows with n, as the point source's one-voxel j does.
-//!   **Controls.** Capping the peak by a larger σ_ε (`FldConfig::sigma_eps`; n = 127): σ_ε =
-//!   10⁻³ (default), 10⁻², 10⁻¹, 1 take 54, 46, 30, 12 cycles; with σ_ε = 1 (D ≤ 1/3,
-//!   `multigrid_scaling`'s `cloud_floor`) the cycles at n = 31, 63, 127, 255 are 9, 10, 12,
-//!   14 (+56 %), the growth that CDA on the cloud (+60 %) and FLD-LP on `cloud_thin` (+73 %)
-//!   show, which Galerkin coarse operators halve for CDA (next bullet). σ_ε is physics, not a
-//!   solver setting: against σ_ε = 10⁻³ at n = 127, φ changes in the cloud by 6.3·10⁻⁵
-//!   (σ_ε = 10⁻², max 0.5 %), 6.9·10⁻⁴ (10⁻¹, max 4.4 %) and 8.7·10⁻³ (1, max 24 %)
-//!   relative L2, and in the vacuum by 1.2·10⁻³, 1.3·10⁻² and 0.12; so the default stays.
-//!   SOR slows with a smaller σ_ε too, as FLD Fig 4c shows (`convergence`'s `sigma_eps`
-//!   case: 552, 745, 775 iterations at σ_ε·L = 10⁻¹, 10⁻², 10⁻³ on the 51³ cloud in f32 to
-//!   10⁻⁴, then flat: 1.4× from 10⁻¹ to 10⁻³, where multigrid at n = 127 takes 1.8×).
-//!   **Tried, not kept.** A deeper Krylov history (depth 0, 3, 6, 12: 110, 54, 39, 34 cycles
-//!   at n = 127; at n = 255 depth 6 and 12 take 106 and 85 cycles, 62 and 54 s, against 154
-//!   and 93 s at depth 3) helps but does not remove the growth, and it costs 2(k + 1) fine
-//!   vectors (3.5 GB at 255³ for depth 12) and time where the cycles are few (CDA on the
-//!   cloud at n = 127: 14 → 13 cycles, 0.59 → 0.74 s). So depth 3 stays the default, and
-//!   [`MgConfig::krylov`] (`multigrid_scaling --krylov`) is the lever for FLD in vacuum.
-//!   The θ of the D update is not ([`FldConfig::d_relaxation`] 0.3, 0.5, 0.7, 1: 92, 54, 55,
-//!   98 cycles at n = 127; the default 0.5 stays). Local relaxation at the peak (Brandt's
-//!   remedy for singularities: after each cycle, 2–50 nonlinear Gauss–Seidel sweeps with D
-//!   recomputed, on the voxels whose r² exceeds 100× the mean and their neighbours, 665–3318
-//!   voxels a cycle where printed): 54 → 47, 39, 32 cycles at n = 127 with 2, 10, 50 sweeps, 21 → 21 at n = 63,
-//!   but 154 → 239 at n = 255; with a lower threshold (10× and 3× the mean, 65 000–541 000
-//!   voxels) 59 and 63 at n = 127; the same sweeps with D held at its value after the cycle
-//!   (linear Gauss–Seidel, 10 and 50 sweeps) 41 and 38 cycles at n = 127, and at n = 255
-//!   `Stalled` after 31. What the peak needs is the limiter's Jacobian (a Newton
-//!   step) where D is sensitive, or coarse operators built from the fine D; neither is built.
-//!   `the_cloud_s_fld_cycles_follow_the_peak_of_d_in_its_vacuum` (`tests/fld_multigrid.rs`)
-//!   pins the peak's sharpening and the capped cloud's flat cycles at n = 31 and 63.
-//! * **Galerkin coarse operators ([`CoarseOp::Galerkin`], CDA only; 2026-12-06), first
-//!   measured outside the crate (`scripts/mg-coarse-operators.py`, numpy/scipy/pyamg).** The
-//!   script rebuilds the CDA operator of FLD Eq 32 on the vacuum cloud (σt = 20, albedo 0.9
-//!   inside, vacuum floored at σ_ε = 10⁻³: a D contrast of 2·10⁴) on n = 2^k + 1 grids (every
-//!   axis vertex-coarsened), smooths with symmetric Gauss–Seidel (two sweeps each side), and
-//!   counts cycles to a relative residual of 10⁻⁶. Its rediscretised operator (the harmonic σ
-//!   of this module) with F-cycles accelerated by conjugate gradients takes 10, 13, 15, 18
-//!   cycles at n = 33, 65, 129, 257, close to this module's 10, 12, 14, 16 at n = 31…255 with
-//!   its Krylov depth 3, so it models the growth; plain V-cycles 22, 36, 55, 76 (rate 0.51,
-//!   0.67, 0.76, 0.82). Galerkin operators A_c = Pᵀ A P (27-point stencils) instead: trilinear P: V 15, 19,
-//!   24 (rate 0.34, 0.43, 0.51), F+CG 8, 9, 10; an operator-dependent P (each axis's odd
-//!   points weighted by their two face couplings, the fine faces coarsened in series
-//!   alongside): V 12, 16, 19, 22 (0.26, 0.37, 0.43, 0.48), F+CG 7, 8, 9, 10; weights from
-//!   the Galerkin stencils' collapsed couplings were no better than trilinear (V 16, 20, 25;
-//!   F+CG 8, 8, 9). With σt = 0.2 outside instead of vacuum (contrast 100): rediscretised F+CG
-//!   8, 10, 11, Galerkin with the operator-dependent P 5, 6, 7 (V 7, 9, 10).
-//!   **In the crate** ([`CoarseOp::Galerkin`], module `galerkin`): R A P with this module's
-//!   own transfers, by probing the finer operator; on cell-coarsened axes the linear P reaches
-//!   one coarse voxel further, so the coarse stencil there has radius 2 (up to 125 points),
-//!   smoothed by a multi-colour Gauss–Seidel (red-black is not a Gauss–Seidel for such
-//!   stencils) and solved for the correction. Measured (same 2-vCPU AMD EPYC 7002, an ad-hoc
-//!   driver over [`CpuMultigrid`], F(2, 2), f64, tolerance 10⁻⁶, one run each), cycles
-//!   rediscretised → Galerkin at n = 31, 63, 127, 255 on the Fig 4 cloud, Krylov depth 3: 10,
-//!   12, 14, 16 → 8, 9, 10, 11 (+60 % → +38 % over the range); plain cycles at n = 31, 63: 20,
-//!   29 → 13, 17; the φ of the two agree to 1.4–12·10⁻⁸ relative L2; point source (n = 127):
-//!   5 → 5 cycles. It is not faster: this first version's setup (one probe of the finer
-//!   operator per stencil entry) took 1.84 s at 127³ and 14.7 s at 255³, and its scalar,
-//!   bounds-checked rows make a cycle slower, so the cloud took 4.6 s against 1.0 s at 127³
-//!   and 38 s against 9.4 s at 255³ (setup included); the point source 3.5 s against 0.50 s.
-//!   With flat offsets for the rows away from the faces (review; φ and residuals
-//!   bit-identical), one run: setup 1.72 and 13.4 s, the cloud 4.00 s against 1.02 s at 127³
-//!   and 32.6 s against 8.85 s at 255³, the point source 3.15 s against 0.51 s.
-//!   So the rediscretised levels stay the default. Galerkin operators roughly halve the
-//!   cloud's growth but do not reach issue 15's ≤ 25 % at vacuum contrast either here or in
-//!   the script; with the over-relaxed smoother of the finest level (ω = 1.2, 2026-12-07,
-//!   Zen 5 host, same driver) they take 7, 8, 8, 10 cycles at n = 31…255 (+43 %; R̄/j̄
-//!   1.2·10⁻⁶ after the 9th at 255, 85 s and a setup of 18 s there), against 8, 10, 12, 14
-//!   rediscretised; for FLD they would need Pᵀ A(D) P once per cycle of the Picard linearisation
-//!   (not built). `galerkin_coarse_levels_cut_cda_cycles_on_the_vacuum_cloud`
-//!   (`tests/fld_multigrid.rs`) pins the agreement with SOR and the cycle cut.
-//! * **GPU ([`gpu`], issue 15 item 2).** The same cycle in f32 on the device: the smoother of
-//!   every level is `fld.wgsl`'s red-black sweep itself, the transfers (D from φ, residual,
-//!   restriction of φ and of the residual, the FAS right-hand side, prolongation) are
-//!   `multigrid.wgsl`, one compute pass per cycle, three sums read back per cycle. Measured
-//!   on lavapipe (`tests/fld_multigrid_gpu.rs`, tolerance 10⁻⁵): on the 33³ point source and
-//!   a 24 × 20 × 27 source block, for CDA and all five limiters, the GPU takes the same
-//!   number of cycles as the CPU-f32 multigrid (6–7; once 6 vs 7) and agrees with it to
-//!   0.09–1.3·10⁻⁶ relative L2 (max relative difference 0.8–10·10⁻⁶, the conformance bound
-//!   is 10⁻³), and with the GPU's SOR to 1.4·10⁻⁶–2.5·10⁻⁵ relative L2. With the arithmetic
-//!   coarse σ, where the CPU stalled (Fig 4 cloud CDA, 95 % vacuum, 10⁴-contrast noise for
-//!   CDA) the GPU stalled after the same number of cycles at the same R̄/j̄ (3 digits); with
-//!   the harmonic σ both converge there in the same number of cycles (7 and 14), and on the
-//!   Fig 4 cloud CDA both stop `Stalled` at f32's floor (R̄/j̄ 1.0 and 1.1·10⁻⁴ after 20 and
-//!   25 cycles, tolerance 10⁻⁵). Those were V cycles; with the F cycles of the default
-//!   (2026-12-06) the GPU and the CPU-f32 multigrid (both plain FAS: [`gpu`]) take the same
-//!   number of cycles in all 12 point-source and source-block cases (5–7).
+//!   vacuum.** From cycle 7 on, 94–99 % of Σr² sits in vacuum voxels just outside the cloud
+//!   where φ is flat: there R = |∇φ|/(σ_ε φ) falls and D = F(R)/σ_ε rises towards
+//!   1/(3σ_ε) = 333. The largest interior D at the converged φ ([`diffusion_field`]) is 0.65,
+//!   1.76, 9.8 and 111 at n = 31, 63, 127, 255, always at the same place, so the discrete
+//!   problems carry a coefficient contrast that grows with n, as the point source's one-voxel j
+//!   does. Capping it by a larger σ_ε (`cloud_floor`, σ_ε = 1, D ≤ 1/3) brings FLD-LP to the
+//!   growth CDA shows (9, 10, 12, 14 before the FMG start); σ_ε is physics, not a solver
+//!   setting (σ_ε = 1 moves φ in the cloud by 8.7·10⁻³ relative L2), so the default stays.
+//!   The lagged D of the smoother leaves out D's dependence on φ, which near such a point is as
+//!   large as the operator itself; what it needs is the limiter's Jacobian (a Newton step) where
+//!   D is sensitive, or coarse operators built from the fine D; neither is built. Local
+//!   relaxation at the peak (2–50 sweeps on the voxels with the largest residuals), a deeper
+//!   Krylov history and the θ of the D update did not remove the growth (`HISTORY.md`).
+//!   Pinned by `the_cloud_s_fld_cycles_follow_the_peak_of_d_in_its_vacuum`.
+//! * **Galerkin coarse operators ([`CoarseOp::Galerkin`], CDA, CPU only)**: A_c = R A P with
+//!   the cycle's own transfers by probing the finer operator (27-point stencils, up to 125 on
+//!   cell-coarsened axes; module `galerkin`), multi-colour Gauss–Seidel, solved for the
+//!   correction. On the cloud at n = 31…255: 7, 8, 8, 10 cycles (+43 %) against 8, 10, 12, 14
+//!   rediscretised (ω = 1.2, from φ = 0), φ within 1.4–12·10⁻⁸ of the rediscretised solve; but
+//!   its setup (1.7 s at 127³, 13–18 s at 255³) and scalar rows make it 4× slower (the cloud at
+//!   127³ 4.0 s against 1.0 s), so the rediscretised levels stay the default. An
+//!   operator-dependent P (outside the crate, `scripts/mg-coarse-operators.py`) reached 7, 8, 9,
+//!   10 (F + CG): still +43 %. For FLD it would need Pᵀ A(D) P once per Picard step (not built).
+//!   Pinned by `galerkin_coarse_levels_cut_cda_cycles_on_the_vacuum_cloud`.
+//! * **FLD-LP on 95 %-vacuum white noise** stalls in f32 (the GPU test) at f32's floor.
 //!
 mod galerkin;
 pub mod gpu;
