@@ -1,6 +1,6 @@
 # Everyday recipes (https://github.com/casey/just). Each is one cargo command; no just needed to run them by hand.
 
-# Regenerate every figure and results/README.md (full size; about 40 min on 2 cores)
+# Regenerate every figure and results/README.md (full size; about 70 min on 2 cores: 4068 s on a 2-vCPU AMD EPYC, 2026-12-07)
 figures:
     cargo run --release -p experiments --bin figures
 

@@ -833,16 +833,42 @@ pub fn csv_header(path: &Path) -> Result<Vec<String>> {
         .collect())
 }
 
-/// `git describe --always --dirty` of the workspace, or "unknown" outside a checkout.
+/// The workspace's revision (`git describe --always`), with `-dirty` when a tracked file
+/// outside `results/` differs from it; "unknown" outside a checkout.
 pub fn git_revision() -> String {
-    std::process::Command::new("git")
-        .args(["describe", "--always", "--dirty", "--abbrev=12"])
-        .current_dir(workspace_root())
-        .output()
-        .ok()
-        .filter(|o| o.status.success())
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-        .unwrap_or_else(|| "unknown".to_string())
+    git_revision_at(&workspace_root())
+}
+
+/// [`git_revision`] of the checkout at `dir`. *Why not `git describe --dirty`*: a `figures`
+/// run rewrites the committed files under `results/` as it goes, so from its second
+/// experiment on every `meta.json` said `-dirty` whatever the code was (the committed results
+/// of 1da8410 and 516fb08 did); only a change to the code or the inputs makes a result's
+/// revision unreliable.
+fn git_revision_at(dir: &Path) -> String {
+    let git = |args: &[&str]| {
+        std::process::Command::new("git")
+            .args(args)
+            .current_dir(dir)
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+    };
+    let Some(rev) = git(&["describe", "--always", "--abbrev=12"]) else {
+        return "unknown".to_string();
+    };
+    let changed = git(&[
+        "status",
+        "--porcelain",
+        "--untracked-files=no",
+        "--",
+        ".",
+        ":(exclude)results",
+    ]);
+    match changed {
+        Some(c) if c.is_empty() => rev,
+        _ => format!("{rev}-dirty"),
+    }
 }
 
 /// Host name, CPU model, logical cores, OS and architecture.
@@ -986,5 +1012,43 @@ mod count_tests {
         assert!(count("1e30").is_err());
         assert!(count("inf").is_err());
         assert!(count("many").is_err());
+    }
+}
+
+#[cfg(test)]
+mod revision_tests {
+    use super::git_revision_at;
+    use std::process::Command;
+
+    /// A result's revision ignores the run's own rewrites of `results/` and is `-dirty` for a
+    /// change anywhere else.
+    #[test]
+    fn the_revision_is_dirty_for_code_changes_not_for_results() {
+        let dir = std::env::temp_dir().join(format!("scatterbench-rev-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("results/run")).unwrap();
+        let git = |args: &[&str]| {
+            let ok = Command::new("git")
+                .args(["-c", "user.name=t", "-c", "user.email=t@t"])
+                .args(args)
+                .current_dir(&dir)
+                .output()
+                .map(|o| o.status.success());
+            assert_eq!(ok.ok(), Some(true), "git {args:?}");
+        };
+        std::fs::write(dir.join("code.rs"), "a").unwrap();
+        std::fs::write(dir.join("results/run/meta.json"), "{}").unwrap();
+        git(&["init", "-q"]);
+        git(&["add", "."]);
+        git(&["commit", "-q", "-m", "c"]);
+        let clean = git_revision_at(&dir);
+        assert!(!clean.ends_with("-dirty") && clean.len() == 12, "{clean}");
+        std::fs::write(dir.join("results/run/meta.json"), "{\"x\": 1}").unwrap();
+        std::fs::write(dir.join("untracked.rs"), "b").unwrap();
+        assert_eq!(git_revision_at(&dir), clean);
+        std::fs::write(dir.join("code.rs"), "changed").unwrap();
+        assert_eq!(git_revision_at(&dir), format!("{clean}-dirty"));
+        let _ = std::fs::remove_dir_all(&dir);
+        assert_eq!(git_revision_at(&dir), "unknown");
     }
 }

@@ -691,8 +691,9 @@ pub fn auto_multigrid_voxels(limiter: FluxLimiter) -> usize {
 }
 
 /// SOR sweeps [`Solver::Auto`] runs on a grid below [`auto_multigrid_voxels`] before it hands
-/// the solve to multigrid. *Why*: a multigrid solve of the measured problems costs 26–60
-/// work units of about 3 SOR sweeps each (the `multigrid` module docs), i.e. 80–180 sweeps
+/// the solve to multigrid. *Why*: a multigrid solve of the measured problems cost 26–60
+/// work units of about 3 SOR sweeps each when this was set (2026-12-06, `multigrid/HISTORY.md`;
+/// since the FMG start a CDA point-source solve is about 12), i.e. 80–180 sweeps
 /// of wall time; a solve that SOR has not finished in 200 sweeps is one where multigrid
 /// would have been about as fast or faster, and running SOR first bounds what the switch
 /// can lose to 200 sweeps (the datasets of `convergence_check` at 18³: CDA 0.002–0.004 s

@@ -46,7 +46,8 @@
 //!   the like-for-like time against SOR, whose stop is the residual alone.
 //!
 //! ## Decisions where the paper is silent (it names multigrid only as future work)
-//! Measured on 2-vCPU AMD EPYC hosts (7002 until 2026-12-06, then Zen 5, 32 MiB L3), f64,
+//! Measured on 2-vCPU AMD EPYC hosts (a 7002 and a Zen 5 with 32 MiB L3; the first numbers of
+//! 2026-12-03 on a 2-core Intel Xeon; `HISTORY.md` names each), f64,
 //! `multigrid_scaling`'s problems unless stated: the point source (τ = 4, albedo 0.5), the Fig 4
 //! cloud, and three controls: `ball_source` (the point source's power over a ball of radius
 //! 0.1), `cloud_thin` (the cloud's vacuum filled by σt = 0.5) and `cloud_floor` (σ_ε = 1).
@@ -61,7 +62,8 @@
 //!   version) left the last coarse voxel of an odd axis straddling the Dirichlet layer, a coarse
 //!   operator that does not approximate the fine one near the boundary: V(2, 2) cycles to
 //!   10⁻⁶ on the point source (τ = 10, albedo 0.9) at n = 17, 33, 65 were CDA 6, 8, 13 with
-//!   it and 5, 5 (n = 17, 33) with vertex coarsening of odd axes (`tests/fld_multigrid.rs`).
+//!   it and 5, 5 (n = 17, 33; 2026-12-03, before the error-estimate stop, which now makes
+//!   them 6, 7) with vertex coarsening of odd axes (`tests/fld_multigrid.rs`).
 //!   Injection for R̂φ on vertex axes stalls FLD-LP at R̄/j̄ ≈ 2–4·10⁻² on the point source
 //!   (n = 33) and at albedo 1; full weighting converges in 6–7 cycles.
 //! * **Coarse σ: harmonic ([`CoarseSigma`]).** The fine operator couples voxels through
@@ -75,17 +77,20 @@
 //! * **F(2, 2) cycles ([`Cycle`]).** An F-cycle costs about 1.3 V-cycles of coarse work for
 //!   the same 4 fine sweeps and needs fewer, flatter cycles: with Krylov depth 3, V → F cycles
 //!   at n = 31, 63, 127: point source CDA 6, 6, 7 → 5, 5, 5, FLD-LP 9, 12, 16 → 9, 10, 11;
-//!   cloud CDA 10, 13, 17 → 10, 12, 14, FLD-LP 17, 34, 108 → 14, 21, 54 (seconds at 127³ the
-//!   same or less). F(2, 1), F(1, 2), F(1, 1), F(3, 3) and W-cycles took as many or more
-//!   cycles on the cloud or `ball_source`, or more seconds (`HISTORY.md`).
+//!   cloud CDA 10, 13, 17 → 10, 12, 14, FLD-LP 17, 34, 108 → 14, 21, 54 (ω = 1, no FMG start;
+//!   seconds at 127³ with setup: point source CDA 0.60 → 0.55, FLD-LP 2.88 → 2.43, cloud CDA
+//!   1.21 → 1.28, FLD-LP 19.0 → 11.6). F(2, 1) and F(1, 2) took more cycles on the cloud or
+//!   `ball_source`, W-cycles the same cycles in more seconds, and on the FLD-LP point source
+//!   F(3, 3) one cycle fewer in more seconds (2.64 against 2.33 s) and F(1, 1) more cycles
+//!   (`HISTORY.md`).
 //! * **The smoother's ω: 1.2 ([`MgConfig::smoother_omega`]).** Over-relaxed red-black
 //!   relaxation smooths better than Gauss–Seidel for ω slightly above 1 (Yavneh), and damps
 //!   some smooth error where the coarse correction is weakest, in vacuum. Over the 40 runs of
 //!   `multigrid_scaling --smoother-omega` (5 problems × CDA and FLD-LP × n = 31…255), 1.2 was
 //!   the largest ω that needed no more cycles than Gauss–Seidel in any of them (255³ cloud
 //!   FLD-LP: 154 cycles at ω = 1, 125 at 1.2, 164 at 1.3; 1.5 costs the point source CDA one
-//!   or two). Pinned by `over_relaxed_smoothing_cuts_cycles` (cloud 13 → 10, 30 % vacuum noise
-//!   19 → 17, point source CDA 7 → 6, FLD-LP 9 → 8).
+//!   or two). Pinned by `over_relaxed_smoothing_cuts_cycles` (with the FMG start: cloud 14 →
+//!   11, 30 % vacuum noise 19 → 17, point source CDA 6 → 5, FLD-LP 7 → 6).
 //! * **Krylov acceleration, depth 3 ([`MgConfig::krylov`], `Krylov`).** Oosterlee & Washio's
 //!   nonlinear Krylov acceleration: φ becomes the combination of the last k + 1 cycle results
 //!   whose linearised residual is least (GMRES-like for CDA, a multisecant step for FLD),
@@ -94,46 +99,55 @@
 //!   rediscretised coarse levels miss (CDA on the cloud: 0.48, 0.63, 0.72 per cycle at n = 31,
 //!   63, 127); plain → depth 3 cycles at n = 31…255: CDA cloud 20, 33, 48, 67 → 10, 13, 17, 22,
 //!   FLD-LP point source 11, 15, 18, 25 → 9, 12, 16, 20 (V cycles, ω = 1). Deeper histories
-//!   help FLD-LP on the cloud (depth 6, 12: 106, 85 cycles at 255³ against 154) at 2(k + 1)
-//!   fine vectors each and cost time where cycles are few. φ and r move into the history
-//!   without copies. Pinned by
+//!   help FLD-LP on the cloud (depth 6, 12: 106, 85 cycles at 255³ against 154, ω = 1) but
+//!   cost time where cycles are few. The history keeps 2(k + 1) fine vectors (depth 3: 8,
+//!   1.1 GB at 255³, checked against the memory budget; the largest depth is [`MAX_KRYLOV`]);
+//!   φ and r move into it without copies. Pinned by
 //!   `krylov_acceleration_cuts_cycles_where_vacuum_slows_the_plain_cycle` (measured from φ = 0:
 //!   cloud 14 → 10, noise 37 → 17, point source CDA 7 → 6, FLD-LP 8 → 7).
-//! * **Coarse D of FLD: FAS, then Picard once the FAS stalls ([`CoarseD::Auto`]).** On the
-//!   cloud at n = 127 the FAS oscillated with period 2 and stalled (R̄/j̄ ≈ 0.01–0.08) where
-//!   D = F(R)/σ swings by 60× on a 10⁻⁴ change of φ in a flat vacuum pocket; freezing the coarse
-//!   D at the mean of the fine D ([`CoarseD::Restricted`], the Picard linearisation) converges
-//!   there but is slower wherever the FAS converges (point source 10, 15, 21 cycles against 9,
-//!   12, 16). So the FAS runs until the stall rule fires, then Picard coarse levels (shell_core,
-//!   18³, 10⁻⁹: FAS `Stalled` after 14 cycles, the default 45 cycles, SOR 110 042 iterations).
-//!   Pinned by `the_picard_coarse_levels_take_over_where_the_fas_stalls`.
+//! * **Coarse D of FLD: FAS, then Picard once the FAS stalls ([`CoarseD::Auto`]).** With
+//!   V-cycles the FAS on the cloud at n = 127 oscillated with period 2 and stalled (R̄/j̄ ≈
+//!   0.01–0.08) where D = F(R)/σ swings by 60× on a 10⁻⁴ change of φ in a flat vacuum
+//!   pocket; freezing the coarse D at the mean of the fine D ([`CoarseD::Restricted`], the
+//!   Picard linearisation) converges there but is slower wherever the FAS converges (V-cycles,
+//!   point source n = 31, 63, 127: 10, 15, 21 cycles against 9, 12, 16). So the FAS runs until
+//!   the stall rule fires, then Picard coarse levels. With the F-cycles of the default the
+//!   cloud no longer stalls (`Auto` does not switch there), but shell_core does (18³,
+//!   emission in the medium, tolerance 10⁻⁹: the FAS alone `Stalled` at R̄/j̄ 3.9 after 9
+//!   cycles, Picard alone 40 cycles, the default 31, SOR 110 042 iterations). Pinned by
+//!   `the_picard_coarse_levels_take_over_where_the_fas_stalls`.
 //! * **Local relaxation around point-like sources ([`MgConfig::local_sweeps`] 8,
 //!   [`MgConfig::local_radius`] 0.5; `multigrid/local.rs`).** A one-voxel source holds
 //!   j = 1/Δl³ and sharpens with n; after each of the first 8 cycles 91–99.9 % of Σr² sat within
 //!   8 voxels of it at n = 255, and FLD-LP's cycles grew (8, 9, 10, 12 at n = 31…255).
 //!   Brandt's remedy is extra relaxation in a neighbourhood of fixed physical size: a box of
-//!   ⌈τ₀/(σΔl)⌉ voxels per axis (4, 8, 16, 32 at n = 31…255), relaxed after the coarse-grid
-//!   correction and after the post-smoothing, with D recomputed before each colour. FLD-LP
-//!   then takes 6, 6, 6, 7 cycles (was 8, 9, 10, 12); a box fixed in voxels, one place only,
-//!   or a set of voxels with R > 4 instead were worse. A box holding vacuum (σ below 1 % of
-//!   its largest, [`VACUUM_CONTRAST`]) is dropped: on 95 %-vacuum noise the boxes made FLD-LP
-//!   stall. Media without a voxel holding 1 % of the emission ([`POINT_SHARE`]) get none.
-//!   Pinned by `local_relaxation_keeps_the_point_source_flat_in_n` (8, 9, 10 → 6, 6, 6 at
-//!   n = 31, 63, 127) and `local::tests`.
+//!   half-width ⌈τ₀/(σΔl)⌉ voxels per axis with the source voxel's σ (4, 8, 16, 32 at n =
+//!   31…255; at most a quarter of the axis, clipped two voxels inside the layer), on the
+//!   finest level only, relaxed after the coarse-grid correction and after the
+//!   post-smoothing, with D recomputed before each colour. FLD-LP then took 6, 6, 6, 7 cycles
+//!   (was 8, 9, 10, 12; before the FMG start); a box fixed in voxels, one place only, or a set
+//!   of voxels with R > 4 instead were worse. At most [`MAX_BOXES`] boxes, around voxels
+//!   holding at least [`POINT_SHARE`] of the emission (none on the Fig 4 clouds); a box
+//!   holding vacuum (σ below [`VACUUM_CONTRAST`] of its largest) is dropped: on 95 %-vacuum
+//!   noise the boxes made FLD-LP stall. CPU only. Pinned by
+//!   `local_relaxation_keeps_the_point_source_flat_in_n` (without → with the boxes, FMG start
+//!   on both sides: 8, 9, 10 → 5, 5, 5 cycles at n = 31, 63, 127) and `local::tests`.
 //! * **Full-multigrid start ([`MgConfig::full_multigrid`], on).** Starting the first cycle
 //!   from φ = 0 left in its residual the smooth error the coarse levels could have removed
-//!   first. With the FMG start (0.7–1.1 work units, counted in the first cycle), `multigrid_scaling
-//!   --full-multigrid false|true`, cycles at n = 31…255: point source CDA 4, 4, 4, 4 → 4, 4,
-//!   4, 3, FLD-LP 6, 6, 6, 7 → 5, 5, 5, 7; cloud CDA 8, 10, 12, 14 → 8, 9, 11, 13, FLD-LP 14,
+//!   first. The FMG start costs 0.7–1.1 work units, counted in the first cycle; it is skipped
+//!   with [`CoarseOp::Galerkin`] and on the GPU. `multigrid_scaling --full-multigrid
+//!   false|true`, cycles to the full stop (its `steps`) at n = 31…255: point source CDA 4, 4,
+//!   4, 4 → 4, 4, 4, 3, FLD-LP 6, 6, 6, 7 → 5, 5, 5, 7; cloud CDA 8, 10, 12, 14 → 8, 9, 11, 13, FLD-LP 14,
 //!   20, 43, 125 → 12, 16, 38, 127; `ball_source` CDA 5, 4, 4, 4 → 4, 4, 3, 3, FLD-LP 7, 7, 7,
 //!   8 → 6, 6, 7, 7; `cloud_thin` and `cloud_floor` one cycle fewer at most sizes: fewer or as
 //!   many in 39 of 40 runs. The residual after the first cycle falls about tenfold on the
 //!   point source (127³ CDA 5.1·10⁻⁴ → 3.2·10⁻⁵). It needs the local boxes: without them it
 //!   leaves the residual at the source (127³ CDA 4.8·10⁻³ after the first cycle). Cubic
 //!   instead of linear interpolation of the FMG corrections on vertex axes (2026-12-07, a
-//!   build not kept) lowered that first residual only to 2.3·10⁻⁵ and saved no cycle: what
-//!   remains after the first cycle sits at the source (16 and 32 box sweeps: 1.3 and
-//!   1.1·10⁻⁵), not in the interpolation. Pinned by
+//!   build not kept) lowered that first residual only from 3.1 to 2.3·10⁻⁵ (albedo 0.1; 0.99:
+//!   3.4 → 2.5·10⁻⁵) and saved no cycle: what remains after the first cycle sits at the
+//!   source (16 and 32 box sweeps, albedo 0.5: 1.3 and 1.1·10⁻⁵ against 3.2·10⁻⁵ with 8),
+//!   not in the interpolation. Pinned by
 //!   `the_full_multigrid_start_cuts_the_first_residual` (33³, τ = 10, albedo 0.9: CDA 3.9·10⁻³
 //!   → 3.5·10⁻⁴, FLD-LP 8.2·10⁻³ → 7.6·10⁻⁴).
 //! * **Coarse Dirichlet layer.** On vertex axes it coincides with the fine one (zero
@@ -147,12 +161,15 @@
 //!   The 255³ CDA point-source solve still takes about 437 000 page faults, mostly the Krylov
 //!   history's first touch; allocating the pool during the setup moves that time out of the
 //!   solve's clock without removing it, so it is not done.
-//! * **Setup.** `CpuMultigrid::new` builds every level's medium and its packed smoother
-//!   fields in parallel over z-slabs (127³ 0.085 s CDA, 0.076 s FLD-LP; 255³ 0.87 and 0.81 s,
-//!   the Fig 4 cloud); setup is not in the solve's seconds, nor in SOR's.
+//! * **Setup.** `CpuMultigrid::new` restricts the medium level by level, fills the finest
+//!   level's packed smoother fields in parallel over z-slabs (127³ 0.085 s CDA, 0.076 s
+//!   FLD-LP; 255³ 0.87 and 0.81 s, the Fig 4 cloud), finds the local boxes and, with
+//!   [`CoarseOp::Galerkin`], builds the coarse operators; setup is not in the solve's
+//!   seconds, nor is SOR's in its.
 //! * **The default solver: [`crate::fld::Solver::Auto`].** Multigrid is slower than SOR on
 //!   small grids (18³ datasets of `convergence_check`: CDA 0.0049 against 0.0039 s on nebula;
-//!   the 31³ cloud 0.4× with CDA), so the default is a rule: multigrid from 100³ voxels for CDA
+//!   the 31³ cloud with CDA 0.0095 against 0.0073 s in `multigrid_scaling`), so the default
+//!   is a rule: multigrid from 100³ voxels for CDA
 //!   and 63³ for FLD ([`crate::fld::auto_multigrid_voxels`], where `multigrid_scaling` measured
 //!   it faster on both its problems); below, SOR for at most 200 sweeps
 //!   ([`crate::fld::AUTO_SOR_SWEEPS`]) and then multigrid from scratch; SOR from scratch where
@@ -166,11 +183,13 @@
 //!   ([`MgConfig::plain_fas`]: no Krylov history, Picard fallback, local boxes or FMG start):
 //!   the smoother of every level is `fld.wgsl`'s red-black sweep itself, the transfers (D from
 //!   φ, residual, restriction of φ and of the residual, the FAS right-hand side, prolongation)
-//!   are `multigrid.wgsl`, one compute pass per cycle, three sums read back per cycle. On
+//!   are `multigrid.wgsl`, one compute pass per cycle, three sums read back per cycle; its
+//!   coarsest level runs a fixed 16 sweeps, and [`CoarseD::Restricted`] and
+//!   [`CoarseOp::Galerkin`] are refused there with a typed error. On
 //!   lavapipe (`tests/fld_multigrid_gpu.rs`, tolerance 10⁻⁵) on the 33³ point source and a
 //!   24 × 20 × 27 source block, for CDA and all five limiters, the GPU takes the same number
-//!   of cycles as the CPU-f32 plain FAS in all 12 cases (4–6) and agrees with it to
-//!   1.3–12·10⁻⁷ relative L2 (conformance bound 10⁻³); on the Fig 4 cloud CDA both stop
+//!   of cycles as the CPU-f32 plain FAS in all 12 cases (4–6; the test allows two more) and
+//!   agrees with it to 1.3–12·10⁻⁷ relative L2 (conformance bound 10⁻³); on the Fig 4 cloud CDA both stop
 //!   `Stalled` at f32's floor (R̄/j̄ ≈ 10⁻⁴).
 //!
 //! ## What a solve costs against SOR (issue 15, acceptance 3)
@@ -178,18 +197,17 @@
 //! `point_source --boundary zero --tolerance 1e-6 --solver sor,multigrid`, every Fig 5 albedo,
 //! one run per size (2026-12-07, Zen 5 host):
 //!
-//!
 //! | size | limiter | speed-up | SOR | multigrid |
 //! |---|---|---|---|---|
 //! | 127³ | CDA | 5.6–8.0× | 0.87–1.21 s, 274–284 sweeps | 0.11–0.18 s, FMG + 2 cycles |
-//! | 127³ | FLD-LP | 6.5–13.5× | 4.3–7.8 s, 472–974 sweeps | 0.45–0.74 s, 4 cycles (5–6 with the stop) |
+//! | 127³ | FLD-LP | 6.5–13.5× | 4.3–7.8 s, 472–974 sweeps | 0.45–0.74 s, 5–6 cycles with the stop |
 //! | 255³ | CDA | 9.1–15.6× | 12.7–13.3 s, 543–566 sweeps | 0.85–1.41 s, FMG + 2 cycles |
 //! | 255³ | FLD-LP (α = 0.5) | 19.6× | 111.1 s, 2078 sweeps | 5.68 s, 7 cycles with the stop |
 //!
 //! φ agrees with SOR's to 0.7–3.1·10⁻⁶ relative L2. At 127³ the ≥ 10× of acceptance 3 is not
-//! met for CDA: a solve to the tolerance is 11.9 work units (the FMG start and two cycles with
-//! their boxes), so a cycle that cost only its sweeps would allow about 23× against SOR's 277
-//! sweeps, but a work unit still costs about 3 SOR sweeps of wall time (9–15 ms against 3.1–4.4
+//! met for CDA: a solve to the tolerance is 11.5–11.9 work units (the FMG start and two cycles
+//! with their boxes), so a cycle that cost only its sweeps would allow about 24× against SOR's
+//! 277 sweeps, but a work unit still costs about 3 SOR sweeps of wall time (9–15 ms against 3.1–4.4
 //! ms). Where the time of four 127³ CDA cycles from φ = 0
 //! goes (albedo 0.5, an instrumented build not kept, three runs, 0.22–0.23 s): the 16 fine
 //! sweeps 56–60 ms, the two fine residuals per cycle 35–37 ms (22–25 ms with Krylov depth 0,
@@ -199,27 +217,33 @@
 //! 8–10 ms, the error estimate 5–6 ms. F(1, 1) cycles show the same (2026-12-07, an ad-hoc
 //! driver, FMG start and four cycles, two runs each): 12.1 work units in 0.23–0.24 s against
 //! 22.9 in 0.25–0.28 s with F(2, 2), so most of a cycle's time is its passes over the fine
-//! grid other than smoothing. `multigrid_scaling`
-//! reports multigrid's speed-up over SOR at every n (its `seconds` table).
+//! grid other than smoothing. `multigrid_scaling` reports multigrid's speed-up over SOR up to
+//! n = 127 (`--sor-max-n`), in its report's `seconds` and `seconds_to_tolerance` tables.
 //!
 //! ## Known limitations (measured, not fixed)
 //! * **Cycles grow with n on the vacuum cloud** (acceptance 2, `results/multigrid_scaling`):
 //!   cycles to R̄/j̄ < 10⁻⁶ at n = 31…255, CDA 7, 9, 11, 13, FLD-LP 12, 16, 38, 125; against
 //!   the point source (CDA 3, 3, 2, 2; FLD-LP 4, 4, 4, 5) and `ball_source` (CDA 4, 3, 3, 3;
-//!   FLD-LP 5, 6, 7, 7). On the cloud with CDA the first two cycles leave R̄/j̄ above its
-//!   starting 1 (127³: 2.3 and 1.3 after them), and the reduction per cycle after that is
-//!   0.03–0.14 at n = 31 and 0.1–0.4 at n = 127 (2026-12-07, ad-hoc driver). The rediscretised coarse operator at 2·10⁴ contrast is the cause for CDA: W-cycles
-//!   (solving the coarse problem more exactly) change no count, more smoothing lowers the
+//!   FLD-LP 5, 6, 7, 7). On the cloud with CDA the first cycles barely gain: R̄/j̄ after the
+//!   first two is 0.77, 0.25 at n = 31 and 2.3, 1.3 at n = 127 (1 at φ = 0), and the reduction
+//!   per cycle after them is 0.03–0.14 at n = 31 and 0.04–0.43 at n = 127 (2026-12-07, ad-hoc
+//!   driver). The evidence points at the rediscretised coarse operator at 2·10⁴ contrast for
+//!   CDA: W-cycles (solving the coarse problem more exactly) change no count, more smoothing lowers the
 //!   counts but not their growth (F(8, 8): 6, 7, 8, 9), deeper Krylov histories (8, 16) save one
-//!   cycle at 127³, and Galerkin coarse operators halve the growth (below).
+//!   cycle at 127³, and Galerkin coarse operators halve the growth (below). Also tried and
+//!   dropped (`HISTORY.md`): relaxing the cloud's surface shell (8, 10, 12 → 8, 10, 11 cycles
+//!   at n = 31, 63, 127), boxes that follow the largest residual (FLD-LP 14, 20, 43, 125 → 11,
+//!   19, 27, 106 cycles but 107 s against 68–72 s at 255³), and a Jacobi-smoothed
+//!   prolongation (CDA 8, 10, 12 → 18, 41–42, 80–81).
 //! * **Why the cloud's FLD-LP cycles grow: the peak of D at a critical point of φ in the
-//!   vacuum.** From cycle 7 on, 94–99 % of Σr² sits in vacuum voxels just outside the cloud
-//!   where φ is flat: there R = |∇φ|/(σ_ε φ) falls and D = F(R)/σ_ε rises towards
+//!   vacuum.** At n = 127 (ω = 1), from cycle 7 on 94–99 % of Σr² sat in vacuum voxels, the
+//!   largest residuals just outside the cloud where φ is flat: there R = |∇φ|/(σ_ε φ) falls and D = F(R)/σ_ε rises towards
 //!   1/(3σ_ε) = 333. The largest interior D at the converged φ ([`diffusion_field`]) is 0.65,
 //!   1.76, 9.8 and 111 at n = 31, 63, 127, 255, always at the same place, so the discrete
 //!   problems carry a coefficient contrast that grows with n, as the point source's one-voxel j
-//!   does. Capping it by a larger σ_ε (`cloud_floor`, σ_ε = 1, D ≤ 1/3) brings FLD-LP to the
-//!   growth CDA shows (9, 10, 12, 14 before the FMG start); σ_ε is physics, not a solver
+//!   does. Capping it by a larger σ_ε (`cloud_floor`, σ_ε = 1, D ≤ 1/3) brings FLD-LP to
+//!   the growth CDA shows (8, 8, 10, 11 cycles at n = 31…255, against CDA's 8, 9, 11, 13 on
+//!   the cloud); σ_ε is physics, not a solver
 //!   setting (σ_ε = 1 moves φ in the cloud by 8.7·10⁻³ relative L2), so the default stays.
 //!   The lagged D of the smoother leaves out D's dependence on φ, which near such a point is as
 //!   large as the operator itself; what it needs is the limiter's Jacobian (a Newton step) where
@@ -237,7 +261,9 @@
 //!   operator-dependent P (outside the crate, `scripts/mg-coarse-operators.py`) reached 7, 8, 9,
 //!   10 (F + CG): still +43 %. For FLD it would need Pᵀ A(D) P once per Picard step (not built).
 //!   Pinned by `galerkin_coarse_levels_cut_cda_cycles_on_the_vacuum_cloud`.
-//! * **FLD-LP on 95 %-vacuum white noise** stalls in f32 (the GPU test) at f32's floor.
+//! * **FLD-LP on 95 %-vacuum white noise in f32** ends at f32's floor: on the GPU `Stalled`
+//!   after 52 cycles at R̄/j̄ 1.14·10⁻⁵, the CPU-f32 multigrid `Converged` after 48 at
+//!   8.2·10⁻⁶ (tolerance 10⁻⁵; `tests/fld_multigrid_gpu.rs`).
 //!
 mod galerkin;
 pub mod gpu;
@@ -267,7 +293,7 @@ pub enum Cycle {
     /// One coarse-grid visit per level.
     V,
     /// F-cycle: an F-cycle on the coarse level followed by a V-cycle. The default (module
-    /// docs: fewer cycles, flatter in n, and as fast or faster than V).
+    /// docs: fewer cycles, flatter in n, in 3 of 4 cases faster than V at 127³).
     #[default]
     F,
 }
