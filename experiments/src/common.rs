@@ -833,6 +833,12 @@ pub fn csv_header(path: &Path) -> Result<Vec<String>> {
         .collect())
 }
 
+/// The step (counting from 1) after which a residual history first fell below `tolerance`;
+/// `None` where it never did.
+pub fn first_below(history: &[f64], tolerance: f64) -> Option<usize> {
+    history.iter().position(|&r| r < tolerance).map(|i| i + 1)
+}
+
 /// The workspace's revision (`git describe --always`), with `-dirty` when a tracked file
 /// outside `results/` differs from it; "unknown" outside a checkout.
 pub fn git_revision() -> String {

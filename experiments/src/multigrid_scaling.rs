@@ -375,7 +375,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
         }
         out.timing(format!("{problem}/{method}/n{n}/{name}/{bk}"), sol.seconds);
         let res = sol.residuals();
-        let steps_to_tolerance = res.iter().position(|&r| r < args.tolerance).map(|i| i + 1);
+        let steps_to_tolerance = crate::common::first_below(res, args.tolerance);
         let mean_rate = steps_to_tolerance
             .filter(|&k| k >= 2 && res[0] > 0.0)
             .map(|k| (res[k - 1] / res[0]).powf(1.0 / (k - 1) as f64));

@@ -97,10 +97,6 @@ pub fn run(args: &Args) -> Result<Vec<SummaryRow>> {
     crate::experiment::run::<PopConvergence>(args)
 }
 
-fn first_below(h: &[f64], t: f64) -> Option<usize> {
-    h.iter().position(|&r| r < t).map(|i| i + 1)
-}
-
 fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<SummaryRow>> {
     let quick = args.common.quick;
     let ns = args
@@ -200,9 +196,9 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<SummaryRow>> {
         }
         summary.push(SummaryRow {
             n,
-            iterations_1e2: first_below(hist, 1e-2),
-            iterations_1e3: first_below(hist, 1e-3),
-            iterations_1e6: first_below(hist, 1e-6),
+            iterations_1e2: crate::common::first_below(hist, 1e-2),
+            iterations_1e3: crate::common::first_below(hist, 1e-3),
+            iterations_1e6: crate::common::first_below(hist, 1e-6),
             iterations: pop.steps(),
             phi_mean: last.phi_mean,
             seconds,

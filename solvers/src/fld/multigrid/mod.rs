@@ -168,7 +168,7 @@
 //!   seconds, nor is SOR's in its.
 //! * **The default solver: [`crate::fld::Solver::Auto`].** Multigrid is slower than SOR on
 //!   small grids (18³ datasets of `convergence_check`: CDA 0.0049 against 0.0039 s on nebula;
-//!   the 31³ cloud with CDA 0.0095 against 0.0073 s in `multigrid_scaling`), so the default
+//!   the 31³ cloud with CDA 0.0086 against 0.0042 s in `multigrid_scaling`), so the default
 //!   is a rule: multigrid from 100³ voxels for CDA
 //!   and 63³ for FLD ([`crate::fld::auto_multigrid_voxels`], where `multigrid_scaling` measured
 //!   it faster on both its problems); below, SOR for at most 200 sweeps
