@@ -230,7 +230,17 @@
 //!   driver). The evidence points at the rediscretised coarse operator at 2·10⁴ contrast for
 //!   CDA: W-cycles (solving the coarse problem more exactly) change no count, more smoothing lowers the
 //!   counts but not their growth (F(8, 8): 6, 7, 8, 9), deeper Krylov histories (8, 16) save one
-//!   cycle at 127³, and Galerkin coarse operators halve the growth (below). Also tried and
+//!   cycle at 127³, and Galerkin coarse operators halve the growth (below). Without Krylov
+//!   one mode sets the rate, 0.33, 0.48, 0.57, 0.61 per cycle at n = 31, 63, 127, 255: an
+//!   error smooth inside the cloud that peaks a few fine voxels under its surface, closer to
+//!   it as n grows, and is there with only two levels (8, 9, 10 cycles at n = 31, 63, 127):
+//!   the first coarsening misplaces the interface, whose surface voxels the fine faces tie to
+//!   the vacuum (face D ≈ 167 against 0.017 inside). No mean of a cell's children fixes that
+//!   (power means of D with p = 0.5, 2, 4: 8, 9, 11; 8, 10, 12; 8, 10, 11; the geometric
+//!   mean of σ 9, 12, 14), since one cell D cannot conduct towards the vacuum and insulate
+//!   towards the cloud; coarse face coefficients can, as the Galerkin operators' directional
+//!   couplings partly do (not built for the rediscretised levels; 2026-12-07, sixteenth
+//!   session, `HISTORY.md`). Also tried and
 //!   dropped (`HISTORY.md`): relaxing the cloud's surface shell (8, 10, 12 → 8, 10, 11 cycles
 //!   at n = 31, 63, 127), boxes that follow the largest residual (FLD-LP 14, 20, 43, 125 → 11,
 //!   19, 27, 106 cycles but 107 s against 68–72 s at 255³), and a Jacobi-smoothed
