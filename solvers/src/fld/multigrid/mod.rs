@@ -199,16 +199,19 @@
 //! ## What a solve costs against SOR (issue 15, acceptance 3)
 //! Seconds until R̄/j̄ first fell below 10⁻⁶, setup excluded on both sides, SOR / multigrid,
 //! `point_source --boundary zero --tolerance 1e-6 --solver sor,multigrid`, every Fig 5 albedo,
-//! one run per size (2026-12-07, Zen 5 host):
+//! one run per size with the vectorised box sweeps (2026-12-07, sixteenth session, Zen 5
+//! host; the runs before them, `HISTORY.md`: 127³ CDA 5.6–8.0× and 6.4–8.4×, FLD-LP 6.5–13.5×
+//! and 6.4–12.9×; 255³ CDA 9.1–15.6×, FLD-LP 19.6× with 5.68 s):
 //!
 //! | size | limiter | speed-up | SOR | multigrid |
 //! |---|---|---|---|---|
-//! | 127³ | CDA | 5.6–8.0× | 0.87–1.21 s, 274–284 sweeps | 0.11–0.18 s, FMG + 2 cycles |
-//! | 127³ | FLD-LP | 6.5–13.5× | 4.3–7.8 s, 472–974 sweeps | 0.45–0.74 s, 5–6 cycles with the stop |
-//! | 255³ | CDA | 9.1–15.6× | 12.7–13.3 s, 543–566 sweeps | 0.85–1.41 s, FMG + 2 cycles |
-//! | 255³ | FLD-LP (α = 0.5) | 19.6× | 111.1 s, 2078 sweeps | 5.68 s, 7 cycles with the stop |
+//! | 127³ | CDA | 6.2–8.5× | 0.74–0.89 s, 274–284 sweeps | 0.102–0.121 s, FMG + 2 cycles |
+//! | 127³ | FLD-LP | 6.7–15.6× | 2.74–6.54 s, 472–974 sweeps | 0.408–0.433 s, 4 cycles (5–6 with the stop) |
+//! | 255³ | CDA | 14.6–16.5× | 13.1–16.8 s, 543–566 sweeps | 0.85–1.11 s, FMG + 2 cycles |
+//! | 255³ | FLD-LP (α = 0.5) | 27.9× | 106.0 s, 2078 sweeps | 3.80 s, 7 cycles with the stop |
 //!
-//! φ agrees with SOR's to 0.7–3.1·10⁻⁶ relative L2. At 127³ the ≥ 10× of acceptance 3 is not
+//! SOR's own seconds vary by up to 25 % between runs on this host, so only ratios within one
+//! run compare. φ agrees with SOR's to 0.4–3.6·10⁻⁶ relative L2. At 127³ the ≥ 10× of acceptance 3 is not
 //! met for CDA: a solve to the tolerance is 11.5–11.9 work units (the FMG start and two cycles
 //! with their boxes), so a cycle that cost only its sweeps would allow about 24× against SOR's
 //! 277 sweeps, but a work unit still costs about 3 SOR sweeps of wall time (9–15 ms against 3.1–4.4
