@@ -171,10 +171,9 @@ pub(super) fn relax(f: &Fields<'_>, b: &LocalBox, phi: &mut [f64], sweeps: usize
                         let ph = |o: usize| &phi_r[o..o + w];
                         let dd = |o: usize| &dfield[o..o + w];
                         let [s1, s2, s3] = d_strides;
-                        let nbp = [ph(n - 1), ph(n + 1), ph(n - nx), ph(n + nx)];
-                        let nbp = [nbp[0], nbp[1], nbp[2], nbp[3], ph(n - plane), ph(n + plane)];
-                        let nbd = [dd(m - s1), dd(m + s1), dd(m - s2), dd(m + s2), dd(m - s3)];
-                        let nbd = [nbd[0], nbd[1], nbd[2], nbd[3], nbd[4], dd(m + s3)];
+                        // Neighbours in the order x−, x+, y−, y+, z−, z+ (the sums' order).
+                        let nbp = [n - 1, n + 1, n - nx, n + nx, n - plane, n + plane].map(&ph);
+                        let nbd = [m - s1, m + s1, m - s2, m + s2, m - s3, m + s3].map(&dd);
                         let (pc, dc) = (ph(n), dd(m));
                         let (ab, rh) = (&f.absorb[n..n + w], &f.rhs[n..n + w]);
                         for q in 0..w {
