@@ -219,7 +219,7 @@
 //! goes (albedo 0.5, an instrumented build not kept, three runs, 0.22–0.23 s): the 16 fine
 //! sweeps 56–60 ms, the two fine residuals per cycle 35–37 ms (22–25 ms with Krylov depth 0,
 //! the rest the first touch of the vectors the history keeps), the coarse levels 34–39 ms, the
-//! local boxes 21–25 ms, the transfers 17–21 ms, packing and unpacking φ between the
+//! local boxes 21–25 ms (before their sweeps were vectorised), the transfers 17–21 ms, packing and unpacking φ between the
 //! smoother's red-black layout and the natural one 10–11 ms, the Krylov sums and combination
 //! 8–10 ms, the error estimate 5–6 ms. F(1, 1) cycles show the same (2026-12-07, an ad-hoc
 //! driver, FMG start and four cycles, two runs each): 12.1 work units in 0.23–0.24 s against
