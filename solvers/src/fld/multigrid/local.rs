@@ -144,7 +144,7 @@ pub(super) fn relax(f: &Fields<'_>, b: &LocalBox, phi: &mut [f64], sweeps: usize
     let mut upd = vec![0.0; b.len()];
     let dl2 = g.dl * g.dl;
     // Where D is read: the fixed field (natural layout) or the box-local one.
-    let (d_origin, d_strides) = match f.d_fixed {
+    let (d_origin, [s1, s2, s3]) = match f.d_fixed {
         Some(_) => (None, [1, nx, plane]),
         None => (Some(e.lo), [1, ew[0], ew[0] * ew[1]]),
     };
@@ -170,7 +170,6 @@ pub(super) fn relax(f: &Fields<'_>, b: &LocalBox, phi: &mut [f64], sweeps: usize
                         let w = bw[0];
                         let ph = |o: usize| &phi_r[o..o + w];
                         let dd = |o: usize| &dfield[o..o + w];
-                        let [s1, s2, s3] = d_strides;
                         // Neighbours in the order x−, x+, y−, y+, z−, z+ (the sums' order).
                         let nbp = [n - 1, n + 1, n - nx, n + nx, n - plane, n + plane].map(&ph);
                         let nbd = [m - s1, m + s1, m - s2, m + s2, m - s3, m + s3].map(&dd);
@@ -223,7 +222,8 @@ fn fill_d(f: &Fields<'_>, e: &LocalBox, ew: [usize; 3], phi: &[f64], out: &mut [
     with_limiter!(f.config.limiter, |lim| fill_d_with(f, e, ew, phi, lim, out))
 }
 
-/// [`fill_d`] for one limiter `lim` ([`FluxLimiter::fraction`]).
+/// [`fill_d`] for one limiter `lim` ([`FluxLimiter::fraction`]), row by row with the
+/// residual's own row kernel ([`super::d_row`]).
 fn fill_d_with<L: Fn(f64) -> (f64, f64) + Sync>(
     f: &Fields<'_>,
     e: &LocalBox,
@@ -233,30 +233,12 @@ fn fill_d_with<L: Fn(f64) -> (f64, f64) + Sync>(
     out: &mut [f64],
 ) {
     let g = f.grid;
-    let [nx, ny, _] = g.n;
-    let plane = nx * ny;
-    let inv_2dl = 0.5 / g.dl;
-    let floor = f.floor;
     out.par_chunks_mut(ew[0] * ew[1])
         .enumerate()
         .for_each(|(kk, slab)| {
-            let k = e.lo[2] + kk;
             for (jj, row) in slab.chunks_mut(ew[0]).enumerate() {
-                let n = g.index(e.lo[0], e.lo[1] + jj, k);
-                let w = ew[0];
-                let ph = |o: usize| &phi[o..o + w];
-                let (p, xm, xp) = (ph(n), ph(n - 1), ph(n + 1));
-                let (ym, yp, zm, zp) = (ph(n - nx), ph(n + nx), ph(n - plane), ph(n + plane));
-                let s = &f.sig[n..n + w];
-                for q in 0..w {
-                    let gx = (xp[q] - xm[q]) * inv_2dl;
-                    let gy = (yp[q] - ym[q]) * inv_2dl;
-                    let gz = (zp[q] - zm[q]) * inv_2dl;
-                    let r =
-                        (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (s[q] * p[q]).max(floor);
-                    let (num, den) = lim(r);
-                    row[q] = num / (den * s[q]);
-                }
+                let c = g.index(e.lo[0], e.lo[1] + jj, e.lo[2] + kk);
+                super::d_row(g, phi, f.sig, c, f.floor, &lim, row);
             }
         });
 }

@@ -131,9 +131,12 @@
 //!   holding vacuum (σ below [`VACUUM_CONTRAST`] of its largest) is dropped: on 95 %-vacuum
 //!   noise the boxes made FLD-LP stall. The box sweeps compute whole rows (both colours; a
 //!   colour writes back its own) and D row by row with one limiter per loop, so both loops
-//!   vectorise: φ bit-identical to the per-voxel loops they replaced, and the 127³ point
-//!   source's seconds to the tolerance (albedo 0.3, five solves each, fastest/median) CDA
-//!   0.130/0.134 → 0.118/0.121 s, FLD-LP 0.443/0.470 → 0.413/0.426 s (2026-12-07). CPU only.
+//!   vectorise: φ bit-identical to the per-voxel loops they replaced. The 127³ point
+//!   source's seconds to the tolerance, albedo 0.3, fastest/median, old and new builds
+//!   interleaved in one run (2026-12-07, 2-vCPU AMD EPYC Zen 5, triad 43.7–47.7 GB/s by the
+//!   benches' bandwidth probe before and after): FLD-LP 0.455/0.513 → 0.406/0.429 s (five
+//!   solves each); CDA, whose boxes evaluate no limiter, 0.109/0.115 → 0.106/0.118 s (twelve
+//!   each), no difference beyond the host's noise. CPU only.
 //!   Pinned by `local_relaxation_keeps_the_point_source_flat_in_n` (without → with the boxes, FMG start
 //!   on both sides: 8, 9, 10 → 5, 5, 5 cycles at n = 31, 63, 127) and `local::tests`.
 //! * **Full-multigrid start ([`MgConfig::full_multigrid`], on).** Starting the first cycle
@@ -1642,22 +1645,46 @@ fn fresh_d_with<L: Fn(f64) -> (f64, f64) + Sync>(
             row[nx - 1] = one_sided(nx - 1, j);
             // Interior i = 1..nx − 1 of row (j, k): centred differences (the one-sided rule's
             // factor 2/steps is exactly 1 there).
-            let c = g.index(1, j, k);
-            let len = nx - 2;
-            let cut = |start: usize| &phi[start..start + len];
-            let (p, xm, xp) = (cut(c), cut(c - 1), cut(c + 1));
-            let (ym, yp, zm, zp) = (cut(c - nx), cut(c + nx), cut(c - plane), cut(c + plane));
-            let s = &sig[c..c + len];
-            let out = &mut row[1..nx - 1];
-            for q in 0..len {
-                let gx = (xp[q] - xm[q]) * inv_2dl;
-                let gy = (yp[q] - ym[q]) * inv_2dl;
-                let gz = (zp[q] - zm[q]) * inv_2dl;
-                let r = (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (s[q] * p[q]).max(floor);
-                out[q] = d_of(r, s[q]);
-            }
+            d_row(
+                g,
+                phi,
+                sig,
+                g.index(1, j, k),
+                floor,
+                &lim,
+                &mut row[1..nx - 1],
+            );
         }
     });
+}
+
+/// D = F(R)/σ (`lim` gives F as [`FluxLimiter::fraction`]'s numerator and denominator) at
+/// the `out.len()` voxels of one x-row from voxel `c` on, with centred differences: in one
+/// contiguous loop that vectorises. Shared by [`fresh_d_with`] and the local boxes.
+#[inline(always)]
+pub(super) fn d_row<L: Fn(f64) -> (f64, f64)>(
+    g: &Grid,
+    phi: &[f64],
+    sig: &[f64],
+    c: usize,
+    floor: f64,
+    lim: &L,
+    out: &mut [f64],
+) {
+    let (nx, plane, len) = (g.n[0], g.n[0] * g.n[1], out.len());
+    let inv_2dl = 0.5 / g.dl;
+    let cut = |start: usize| &phi[start..start + len];
+    let (p, xm, xp) = (cut(c), cut(c - 1), cut(c + 1));
+    let (ym, yp, zm, zp) = (cut(c - nx), cut(c + nx), cut(c - plane), cut(c + plane));
+    let s = &sig[c..c + len];
+    for q in 0..len {
+        let gx = (xp[q] - xm[q]) * inv_2dl;
+        let gy = (yp[q] - ym[q]) * inv_2dl;
+        let gz = (zp[q] - zm[q]) * inv_2dl;
+        let r = (gx * gx + gy * gy + gz * gz).sqrt().max(floor) / (s[q] * p[q]).max(floor);
+        let (num, den) = lim(r);
+        out[q] = num / (den * s[q]);
+    }
 }
 
 /// L(φ) of FLD Eq 32 (per unit volume, normalised units) into `out` (as long as the grid) at
