@@ -203,8 +203,10 @@
 //! Seconds until R̄/j̄ first fell below 10⁻⁶, setup excluded on both sides, SOR / multigrid,
 //! `point_source --boundary zero --tolerance 1e-6 --solver sor,multigrid`, every Fig 5 albedo,
 //! one run per size with the vectorised box sweeps (2026-12-07, sixteenth session, Zen 5
-//! host; the runs before them, `HISTORY.md`: 127³ CDA 5.6–8.0× and 6.4–8.4×, FLD-LP 6.5–13.5×
-//! and 6.4–12.9×; 255³ CDA 9.1–15.6×, FLD-LP 19.6× with 5.68 s):
+//! host, whose bandwidth probe gave triad 43.7–47.7 GB/s in the same session, not the same
+//! run; ratios within a run need no probe; the runs before them, `HISTORY.md`: 127³ CDA
+//! 5.6–8.0× and 6.4–8.4×, FLD-LP 6.5–13.5× and 6.4–12.9×; 255³ CDA 9.1–15.6×, FLD-LP 19.6×
+//! with 5.68 s):
 //!
 //! | size | limiter | speed-up | SOR | multigrid |
 //! |---|---|---|---|---|
@@ -214,21 +216,22 @@
 //! | 255³ | FLD-LP (α = 0.5) | 27.9× | 106.0 s, 2078 sweeps | 3.80 s, 7 cycles with the stop |
 //!
 //! SOR's own seconds vary by up to 25 % between runs on this host, so only ratios within one
-//! run compare. φ agrees with SOR's to 0.4–3.6·10⁻⁶ relative L2. At 127³ the ≥ 10× of acceptance 3 is not
-//! met for CDA: a solve to the tolerance is 11.5–11.9 work units (the FMG start and two cycles
-//! with their boxes), so a cycle that cost only its sweeps would allow about 24× against SOR's
-//! 277 sweeps, but a work unit still costs about 3 SOR sweeps of wall time (9–15 ms against 3.1–4.4
-//! ms). Where the time of four 127³ CDA cycles from φ = 0
-//! goes (albedo 0.5, an instrumented build not kept, three runs, 0.22–0.23 s): the 16 fine
-//! sweeps 56–60 ms, the two fine residuals per cycle 35–37 ms (22–25 ms with Krylov depth 0,
-//! the rest the first touch of the vectors the history keeps), the coarse levels 34–39 ms, the
-//! local boxes 21–25 ms (before their sweeps were vectorised), the transfers 17–21 ms, packing and unpacking φ between the
-//! smoother's red-black layout and the natural one 10–11 ms, the Krylov sums and combination
-//! 8–10 ms, the error estimate 5–6 ms. F(1, 1) cycles show the same (2026-12-07, an ad-hoc
-//! driver, FMG start and four cycles, two runs each): 12.1 work units in 0.23–0.24 s against
-//! 22.9 in 0.25–0.28 s with F(2, 2), so most of a cycle's time is its passes over the fine
-//! grid other than smoothing. `multigrid_scaling` reports multigrid's speed-up over SOR up to
-//! n = 127 (`--sor-max-n`), in its report's `seconds` and `seconds_to_tolerance` tables.
+//! run compare. φ agrees with SOR's to 0.4–3.6·10⁻⁶ relative L2. At 127³ the ≥ 10× of
+//! acceptance 3 is not met for CDA at any albedo, nor for FLD-LP at 0.3–0.7. For CDA a solve to
+//! the tolerance is 11.5–11.9 work units (the FMG start and two cycles with their boxes), so a
+//! cycle that cost only its sweeps would allow about 24× against SOR's 277 sweeps, but a work
+//! unit still costs about 3 SOR sweeps of wall time (9–15 ms against 3.1–4.4 ms). Where the
+//! time of four 127³ CDA cycles from φ = 0 goes (albedo 0.5, an instrumented build not kept,
+//! three runs, 0.22–0.23 s): the 16 fine sweeps 56–60 ms, the two fine residuals per cycle
+//! 35–37 ms (22–25 ms with Krylov depth 0, the rest the first touch of the vectors the history
+//! keeps), the coarse levels 34–39 ms, the local boxes 21–25 ms (before their sweeps were
+//! vectorised), the transfers 17–21 ms, packing and unpacking φ between the smoother's
+//! red-black layout and the natural one 10–11 ms, the Krylov sums and combination 8–10 ms, the
+//! error estimate 5–6 ms. F(1, 1) cycles show the same (2026-12-07, an ad-hoc driver, FMG start
+//! and four cycles, two runs each): 12.1 work units in 0.23–0.24 s against 22.9 in 0.25–0.28 s
+//! with F(2, 2), so most of a cycle's time is its passes over the fine grid other than
+//! smoothing. `multigrid_scaling` reports multigrid's speed-up over SOR up to n = 127
+//! (`--sor-max-n`), in its report's `seconds` and `seconds_to_tolerance` tables.
 //!
 //! ## Known limitations (measured, not fixed)
 //! * **Cycles grow with n on the vacuum cloud** (acceptance 2, `results/multigrid_scaling`):
