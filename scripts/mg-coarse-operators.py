@@ -18,7 +18,13 @@ multigrid cycles to a relative residual of 1e-6 for three coarse operators:
   continuity), so a voxel strongly tied to the vacuum takes the vacuum's correction;
 * `galerkin-series`: as `galerkin-operator`, but the coarse levels' interpolation weights
   come from face coefficients coarsened alongside (the two fine faces a coarse face spans in
-  series, full weighting across) instead of the Galerkin stencils' collapsed couplings.
+  series, full weighting across) instead of the Galerkin stencils' collapsed couplings;
+* `series`: rediscretised, but with directional coarse face coefficients instead of one D
+  per coarse voxel: the 7-point coarse stencil takes the face coefficients of
+  `galerkin-series` (a coarse voxel can then conduct towards the vacuum and insulate towards
+  the cloud), the absorption by full weighting, trilinear prolongation, R = P^T / 8;
+* `series-op`: as `series` with the operator-dependent prolongation of `galerkin-series`
+  (weights from the same face coefficients).
 
 Grids are n = 2^k + 1 voxels per axis including the layer (every axis vertex-coarsened, as
 `Axis` does for odd interior counts); the coarsest level has at most 5^3 voxels and is
@@ -204,6 +210,37 @@ def prolongation(couplings, m, operator_dependent):
     return p
 
 
+def face_operator(faces, absorb):
+    """CSR matrix of the 7-point operator with the given face coefficients (per axis, between
+    voxel i and i + 1 along it, already divided by h^2) plus `absorb` on the diagonal."""
+    n = absorb.shape[0]
+    m = n - 2
+    index = -np.ones((n, n, n), dtype=np.int64)
+    index[1:-1, 1:-1, 1:-1] = np.arange(m**3).reshape(m, m, m)
+    inner = (slice(1, -1),) * 3
+    diag = absorb[inner].copy()
+    rows, cols, vals = [], [], []
+    for axis, k in enumerate(faces):
+        for step in (-1, 1):
+            nb = list(inner)
+            nb[axis] = slice(1 + step, n - 1 + step)
+            face = list(inner)
+            face[axis] = slice(0, m) if step == -1 else slice(1, m + 1)
+            kk = k[tuple(face)]
+            diag += kk
+            j = index[tuple(nb)]
+            keep = j >= 0
+            rows.append(index[inner][keep])
+            cols.append(j[keep])
+            vals.append(-kk[keep])
+    rows.append(np.arange(m**3))
+    cols.append(np.arange(m**3))
+    vals.append(diag.ravel())
+    return sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m**3, m**3)
+    )
+
+
 def hierarchy(n, outside, kind):
     sigma_t, albedo, emission = medium(n, outside)
     h = 1.0 / n
@@ -216,14 +253,19 @@ def hierarchy(n, outside, kind):
     while m > 3:
         level = pyamg.multilevel.MultilevelSolver.Level()
         level.A = a
-        if kind == "galerkin-series":
+        if kind in ("galerkin-series", "series", "series-op"):
             couplings = face_couplings(faces, m)
             faces = series_faces(faces)
         else:
             couplings = collapsed_couplings(a, m)
-        p = prolongation(couplings, m, kind.startswith("galerkin-") and kind != "galerkin-linear")
+        operator_dependent = kind in ("galerkin-operator", "galerkin-series", "series-op")
+        p = prolongation(couplings, m, operator_dependent)
         level.P = p
-        if kind == "rediscretised":
+        if kind in ("series", "series-op"):
+            level.R = (p.T / 8.0).tocsr()
+            absorb = full_weighting(absorb)
+            a = face_operator(faces, absorb)
+        elif kind == "rediscretised":
             level.R = (p.T / 8.0).tocsr()
             h, d, absorb = 2 * h, full_weighting(d), full_weighting(absorb)
             a = operator(h, d, absorb)

@@ -180,10 +180,10 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<IterRow>> {
     for j in &jobs {
         work.add(
             format!(
-                "case {} (n = {}): --max-iterations {} × {}³ voxels",
+                "case {} (n = {}): --max-iterations {} × {}³ FLD-LP voxel updates",
                 j.case, j.n, args.max_iterations, j.n
             ),
-            args.max_iterations as f64 * (j.n as f64).powi(3),
+            args.max_iterations as f64 * (j.n as f64).powi(3) * crate::cost::FLD_VOXEL,
         );
     }
     ctx.work(&work)?;

@@ -3,7 +3,9 @@
 //!
 //! An estimate counts *operations*, in units of one path-tracer collision:
 //! * a voxel update of a grid solver: iterations × voxels, the iterations of a solve
-//!   stopped by a tolerance from [`solve_steps`] (bounded by the step cap);
+//!   stopped by a tolerance from [`solve_steps`] (bounded by the step cap); an FLD or CDA
+//!   solve ([`fld_solve`]) counts its red-black sweeps by [`fld_steps`] and weighs a voxel
+//!   update by its measured cost ([`FLD_VOXEL`], [`CDA_VOXEL`]);
 //! * an event of a Monte Carlo path (a real or null collision, or a ratio-tracking step of a
 //!   shadow ray): paths × the expected events per path ([`path_events`], [`slab_events`],
 //!   [`infinite_events`]);
@@ -23,13 +25,14 @@
 //! budget is then 5.2·10¹¹ operations. Estimates of the default full runs `figures` makes
 //! (listed with `SCATTERBENCH_WORK_BUDGET=1`, which refuses every run with its estimate),
 //! against the measured wall time of the committed results on this machine:
-//! `point_source` 1.5·10¹¹ (70 min; ran 4 min: the solve model takes the slowest case for
-//! all), `lbm_diffusion_limit` 9.9·10¹⁰ (46 min; 43 s, the step cap), `accuracy_cost`
+//! `point_source` 2.6·10¹⁰ (12 min; the committed run took 8 s: its solves are multigrid,
+//! costed as SOR, and the solve model takes the slowest case for all), `multigrid_scaling`
+//! 1.2·10¹¹ (57 min; 3.6 min), `convergence` 4.1·10⁹ (1.9 min; 21 s), `lbm_diffusion_limit` 9.9·10¹⁰ (46 min; 43 s, the step cap), `accuracy_cost`
 //! 3.1·10¹⁰ with RDE (14.3 min; 14.3 min, partly beside a CI run), `renderings` 1.1·10¹⁰
 //! (4.9 min; 2.6 min), `pt_point_source`
 //! 4.6·10⁹ (2.1 min; 2.1 min), `pt_render` 4.1·10⁸ (11 s; 12 s), `rde_steady` 9.9·10⁹
 //! (4.6 min; 8 s: the steady solves take far fewer steps than the cap the model assumes),
-//! `rde_stability` 1.4·10⁹ (40 s; 16 s), `rde_controls` 5.3·10⁸ (15 s; 1.4 s). So the largest is 29 % of
+//! `rde_stability` 1.4·10⁹ (40 s; 16 s), `rde_controls` 5.3·10⁸ (15 s; 1.4 s). So the largest, `multigrid_scaling`, is 24 % of
 //! the 2-core budget. The test `tests/bounded.rs` refuses an absurd run of each binary and
 //! lets `--force` through.
 
@@ -280,8 +283,9 @@ pub fn majorant_mass(medium: &solvers::Medium<f64>) -> f64 {
 /// or the cap `max_steps`: the cap when `rel` is 0 (a fixed-step run), else the fewer of
 /// the cap and `n·ln(1/rel) + 10`. *Measured* (`results/point_source`, n = 127,
 /// R̄/j̄ < 10⁻⁶, SOR at the Poisson-optimal ω): CDA 274–290 and FLD 472–975 iterations,
-/// at most 0.56·n·ln(1/rel), so the model leaves a 1.8× margin. A hard case that runs to
-/// the cap is still bounded by the cap.
+/// at most 0.56·n·ln(1/rel), so the model leaves a 1.8× margin (FLD's iterations grow like
+/// n², so FLD and CDA solves use [`fld_steps`]). A hard case that runs to the cap is still
+/// bounded by the cap.
 pub fn solve_steps(n: usize, rel: f64, max_steps: usize) -> f64 {
     let cap = max_steps as f64;
     if rel > 0.0 && rel < 1.0 {
@@ -289,6 +293,75 @@ pub fn solve_steps(n: usize, rel: f64, max_steps: usize) -> f64 {
     } else {
         cap
     }
+}
+
+/// Operations of one voxel update of FLD Algorithm 1's red-black sweep (f64, the fused
+/// sweep of `solvers::fld`) with a limiter that depends on φ (FLD), relative to the nominal
+/// operation (one path-tracer collision). *Measured* (2026-12-07, 2-vCPU AMD EPYC family 25
+/// (Zen 3), triad 25 GB/s by the `benches` bandwidth probe in the same session): the
+/// module docs' `pt_point_source --albedo 0.99 --g 0 --paths 400000` ran 2.24 and
+/// 2.37·10⁵ paths/s, 2.2·10⁷ collisions/s; `point_source --n 127 --solver sor --limiter
+/// cda,lp --albedo 0.5 --boundary zero` took 277 CDA sweeps in 1.78–1.91 s and 497 FLD-LP
+/// sweeps in 7.77 s, 3.1–3.4 and 7.6 ns per voxel update, i.e. 1/14 and 1/6 of a
+/// collision. The sweeps are memory-bound and the collisions are not, so the ratio moves
+/// with a host's bandwidth: on the Zen 5 host of the multigrid module docs (triad 44–48 GB/s)
+/// the same CDA sweep took 1.4 ns a voxel. The constants leave a margin over the slower
+/// host.
+pub const FLD_VOXEL: f64 = 1.0 / 5.0;
+
+/// As [`FLD_VOXEL`] for CDA (constant D: the sweep evaluates no limiter).
+pub const CDA_VOXEL: f64 = 1.0 / 10.0;
+
+/// Red-black SOR iterations of an FLD or CDA solve on a grid of at most `n` voxels per axis,
+/// stopped at tolerance `rel` or the cap `max_steps`: [`solve_steps`] for CDA (its
+/// iterations grow like n), and [`solve_steps`] × max(1, n/128) for a limiter that depends
+/// on φ, whose iterations grow like n²: *measured* (`point_source --boundary zero
+/// --tolerance 1e-6 --solver sor`, every Fig 5 albedo, multigrid module docs) CDA 274–284
+/// iterations at n = 127 and 543–566 at 255, FLD-LP 472–974 and 1961–4050, so at 255 FLD-LP
+/// needs up to 1.15·n·ln(1/rel), more than [`solve_steps`] alone allows; this model leaves
+/// it a 1.7× margin there and 1.8× at 127.
+pub fn fld_steps(n: usize, rel: f64, max_steps: usize, constant_limiter: bool) -> f64 {
+    let steps = solve_steps(n, rel, usize::MAX);
+    let steps = if constant_limiter {
+        steps
+    } else {
+        steps * (n as f64 / 128.0).max(1.0)
+    };
+    steps.min(max_steps as f64)
+}
+
+/// Fine red-black sweeps of wall time one multigrid cycle (`solvers::fld::multigrid`, F(2, 2)
+/// with the Krylov acceleration and the local boxes) costs. *Measured* at 127³: on the Zen 5
+/// host of the multigrid module docs a CDA cycle is 5.2 work units of 3.9 SOR sweeps each,
+/// about 20 sweeps, and an FLD-LP cycle about 19; on the Zen 3 host of [`FLD_VOXEL`] the
+/// CDA point source's 4 cycles (the FMG start in the first) took 0.605 s, 23.5 of its SOR
+/// sweeps (6.4 ms) each.
+pub const MG_CYCLE_SWEEPS: f64 = 25.0;
+
+/// Operations of one FLD or CDA solve on `voxels` voxels of at most `n` per axis, stopped at
+/// tolerance `rel` or after `max_steps` steps (SOR iterations, or multigrid cycles):
+/// [`fld_steps`] sweeps for SOR; for multigrid the same model with the cap at `max_steps`
+/// cycles of [`MG_CYCLE_SWEEPS`] sweeps (an upper bound where it converges: it stops in far
+/// fewer fine sweeps), each sweep a voxel update of [`FLD_VOXEL`] or [`CDA_VOXEL`] per voxel.
+pub fn fld_solve(
+    n: usize,
+    voxels: f64,
+    rel: f64,
+    max_steps: usize,
+    constant_limiter: bool,
+    multigrid: bool,
+) -> f64 {
+    let cap = if multigrid {
+        (max_steps as f64 * MG_CYCLE_SWEEPS).min(usize::MAX as f64) as usize
+    } else {
+        max_steps
+    };
+    let voxel = if constant_limiter {
+        CDA_VOXEL
+    } else {
+        FLD_VOXEL
+    };
+    fld_steps(n, rel, cap, constant_limiter) * voxels * voxel
 }
 
 /// Operations of one voxel visit of a shadow ray, relative to one raymarch sample (and to
@@ -391,6 +464,42 @@ mod tests {
         let mut small = Estimate::new();
         small.add("paths", 4e6 * infinite_events(0.99));
         assert!(small.check(false).is_ok());
+    }
+
+    /// The FLD solve model bounds the SOR sweeps the multigrid module docs measured
+    /// (`point_source --boundary zero --tolerance 1e-6 --solver sor`, every Fig 5 albedo):
+    /// CDA 284 at n = 127 and 566 at 255, FLD-LP 974 and 4050, where `solve_steps` alone
+    /// gives 1765 and 3533; and the acceptance-3 run of issue 15 at 255³ (CDA, six albedos,
+    /// SOR and multigrid), which took about 2.5 minutes on 2 cores, fits the 2-core budget
+    /// while its estimate stays above what it took at the nominal rate.
+    #[test]
+    fn the_fld_solve_model_bounds_the_measured_sweeps_and_admits_the_255_cube_run() {
+        let (tol, cap) = (1e-6, 20_000);
+        for (n, cda, lp) in [(127, 284.0, 974.0), (255, 566.0, 4050.0)] {
+            let (c, f) = (fld_steps(n, tol, cap, true), fld_steps(n, tol, cap, false));
+            assert!(
+                c >= 1.5 * cda && f >= 1.5 * lp,
+                "n = {n}: {c} / {cda}, {f} / {lp}"
+            );
+        }
+        assert!(
+            solve_steps(255, tol, cap) < 4050.0,
+            "solve_steps alone misses FLD at 255"
+        );
+        let voxels = 255f64.powi(3);
+        let run: f64 = [false, true]
+            .iter()
+            .map(|&mg| 6.0 * fld_solve(255, voxels, tol, cap, true, mg))
+            .sum();
+        let two_cores = BUDGET_HOURS * 3600.0 * NOMINAL_RATE * 2.0;
+        let took = 150.0 * NOMINAL_RATE * 2.0;
+        assert!(
+            run < two_cores && run > took,
+            "{run:e} vs {two_cores:e}, {took:e}"
+        );
+        // Multigrid's cap counts cycles of MG_CYCLE_SWEEPS sweeps.
+        let capped = fld_solve(255, voxels, tol, 10, false, true);
+        assert!((capped - 10.0 * MG_CYCLE_SWEEPS * voxels * FLD_VOXEL).abs() < 1.0);
     }
 
     #[test]

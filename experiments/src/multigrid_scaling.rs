@@ -280,6 +280,29 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<StepRow>> {
         let bytes = solvers::budget::cube_solver_bytes(n).saturating_mul(8) / 7 + 1;
         solvers::budget::check(format!("--n {n}"), bytes)?;
     }
+    let mut work = crate::cost::Estimate::new();
+    let problems = args.problems.len() as f64;
+    for &l in &args.limiters {
+        let constant = l.is_constant();
+        for &n in &ns {
+            let voxels = (n as f64).powi(3);
+            let (tol, mg_cap) = (args.tolerance, args.max_cycles);
+            let mut ops = crate::cost::fld_solve(n, voxels, tol, mg_cap, constant, true);
+            let sor = n <= sor_max;
+            if sor {
+                ops += crate::cost::fld_solve(n, voxels, tol, args.max_iterations, constant, false);
+            }
+            work.add(
+                format!(
+                    "{} problems × {l} at n = {n}: multigrid{} (per backend)",
+                    args.problems.len(),
+                    if sor { " and SOR" } else { "" }
+                ),
+                problems * ops,
+            );
+        }
+    }
+    ctx.work(&work)?;
     ctx.start(serde_json::json!({
         "n": ns, "sor_max_n": sor_max, "problems": args.problems,
         "limiters": args.limiters.iter().map(|l| l.to_string()).collect::<Vec<_>>(),

@@ -310,20 +310,36 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<RunRow>> {
         PrecisionArg::F64 => 1e-6,
         PrecisionArg::F32 => 1e-4,
     });
-    let steps = crate::cost::solve_steps(n, rel, args.max_iterations);
     let mut work = crate::cost::Estimate::new();
-    // Multigrid is costed by the SOR estimate too (an upper bound: it is the reference's
-    // cost, and multigrid stops in far fewer fine sweeps where it converges).
-    work.add(
-        format!(
-            "{} cases × {} solvers × {steps:.0} iterations (--max-iterations {}, tolerance \
-             {rel:e}) × {n}³ voxels",
-            cases.len(),
-            solvers.len(),
-            args.max_iterations
-        ),
-        (cases.len() * solvers.len()) as f64 * steps * (n as f64).powi(3),
-    );
+    let voxels = (n as f64).powi(3);
+    for &sv in &solvers {
+        // `auto` ends in SOR where multigrid does not converge: costed as SOR.
+        let mg = sv == SolverArg::Multigrid;
+        for constant in [true, false] {
+            let k = cases
+                .iter()
+                .filter(|c| c.limiter.is_constant() == constant)
+                .count();
+            if k == 0 {
+                continue;
+            }
+            let steps = crate::cost::fld_steps(n, rel, args.max_iterations, constant);
+            let what = match sv {
+                SolverArg::Multigrid => "multigrid (costed as SOR's sweeps)".to_string(),
+                SolverArg::Sor => format!("{steps:.0} SOR sweeps"),
+                SolverArg::Auto => format!("auto (costed as {steps:.0} SOR sweeps)"),
+            };
+            work.add(
+                format!(
+                    "{k} {} cases × {what} × {n}³ voxels (tolerance {rel:e}, --max-iterations {})",
+                    if constant { "CDA" } else { "FLD" },
+                    args.max_iterations
+                ),
+                k as f64
+                    * crate::cost::fld_solve(n, voxels, rel, args.max_iterations, constant, mg),
+            );
+        }
+    }
     ctx.work(&work)?;
     let params = serde_json::json!({
         "n": n, "tau_extent": args.tau_extent, "albedo": albedos, "limiters": limiters.iter().map(|l| l.to_string()).collect::<Vec<_>>(),

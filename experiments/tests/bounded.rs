@@ -79,6 +79,18 @@ fn runs_over_the_work_budget_are_refused_with_their_estimate_and_force_runs_them
             env!("CARGO_BIN_EXE_convergence"),
             vec!["--max-iterations", "1e9"],
         ),
+        // SOR on every problem up to 255³ at a tolerance no solve reaches.
+        (
+            env!("CARGO_BIN_EXE_multigrid_scaling"),
+            vec![
+                "--sor-max-n",
+                "255",
+                "--tolerance",
+                "1e-300",
+                "--max-iterations",
+                "1e9",
+            ],
+        ),
         (
             env!("CARGO_BIN_EXE_i3rc_step_cloud"),
             vec!["--paths", "1e13"],

@@ -251,9 +251,12 @@
 //!   the vacuum (face D ≈ 167 against 0.017 inside). No mean of a cell's children fixes that
 //!   (power means of D with p = 0.5, 2, 4: 8, 9, 11; 8, 10, 12; 8, 10, 11; the geometric
 //!   mean of σ 9, 12, 14), since one cell D cannot conduct towards the vacuum and insulate
-//!   towards the cloud; coarse face coefficients can, as the Galerkin operators' directional
-//!   couplings partly do (not built for the rediscretised levels; 2026-12-07, sixteenth
-//!   session, `HISTORY.md`). Also tried and
+//!   towards the cloud; the Galerkin operators' directional couplings partly do (below).
+//!   Directional coarse face coefficients for the rediscretised levels (two fine faces in
+//!   series, full weighting across; `scripts/mg-coarse-operators.py`'s `series` and
+//!   `series-op`, not built in the crate) do not: F-cycles with conjugate gradients took 30,
+//!   44, 54 and 15, 22, 25 cycles at n = 33, 65, 129 against the rediscretised 10, 13, 15,
+//!   and plain V-cycles diverged (seventeenth session, `HISTORY.md`). Also tried and
 //!   dropped (`HISTORY.md`): relaxing the cloud's surface shell (8, 10, 12 → 8, 10, 11 cycles
 //!   at n = 31, 63, 127), boxes that follow the largest residual (FLD-LP 14, 20, 43, 125 → 11,
 //!   19, 27, 106 cycles but 107 s against 68–72 s at 255³), and a Jacobi-smoothed
