@@ -215,7 +215,10 @@
 //! | 255³ | CDA | 14.6–16.5× | 13.1–16.8 s, 543–566 sweeps | 0.85–1.11 s, FMG + 2 cycles |
 //! | 255³ | FLD-LP (α = 0.5) | 27.9× | 106.0 s, 2078 sweeps | 3.80 s, 7 cycles with the stop |
 //!
-//! SOR's own seconds vary by up to 25 % between runs on this host, so only ratios within one
+//! On a Zen 3 host with about half that bandwidth (triad 21–28 GB/s; seventeenth session,
+//! `HISTORY.md`) every second was 2–2.6× longer and the ratios about the same: 127³ CDA
+//! 5.5–7.0×, FLD-LP 6.5–12.9×; 255³ CDA 14.7–18.9×, FLD-LP (α = 0.5) 24.1× (SOR 241.5 s).
+//! SOR's own seconds vary by up to 25 % between runs on the Zen 5 host, so only ratios within one
 //! run compare. φ agrees with SOR's to 0.4–3.6·10⁻⁶ relative L2. At 127³ the ≥ 10× of
 //! acceptance 3 is not met for CDA at any albedo, nor for FLD-LP at 0.3–0.7. For CDA a solve to
 //! the tolerance is 11.5–11.9 work units (the FMG start and two cycles with their boxes), so a
