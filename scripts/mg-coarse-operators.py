@@ -24,7 +24,11 @@ multigrid cycles to a relative residual of 1e-6 for three coarse operators:
   `galerkin-series` (a coarse voxel can then conduct towards the vacuum and insulate towards
   the cloud), the absorption by full weighting, trilinear prolongation, R = P^T / 8;
 * `series-op`: as `series` with the operator-dependent prolongation of `galerkin-series`
-  (weights from the same face coefficients).
+  (weights from the same face coefficients);
+* `ruge-stuben`: pyamg's classical algebraic multigrid on the fine operator (coarse points
+  chosen by strength of connection, so the coarsening follows the interface), as a bound on
+  what coarsening adapted to the coefficients can do; `F-cg` then runs V-cycles with CG
+  (pyamg's algebraic hierarchy has no F-cycle here).
 
 Grids are n = 2^k + 1 voxels per axis including the layer (every axis vertex-coarsened, as
 `Axis` does for odd interior counts); the coarsest level has at most 5^3 voxels and is
@@ -247,6 +251,11 @@ def hierarchy(n, outside, kind):
     d = 1.0 / (3.0 * np.maximum(sigma_t, SIGMA_EPS))
     absorb = sigma_t * (1.0 - albedo)
     a = operator(h, d, absorb)
+    if kind == "ruge-stuben":
+        solver = pyamg.ruge_stuben_solver(a, max_coarse=100)
+        gs = ("gauss_seidel", {"sweep": "symmetric", "iterations": 1})
+        change_smoothers(solver, presmoother=gs, postsmoother=gs)
+        return solver, emission[1:-1, 1:-1, 1:-1].ravel()
     levels = []
     m = n - 2
     faces = fine_faces(h, d)
@@ -307,7 +316,7 @@ def main():
                         x0=np.zeros_like(b),
                         tol=args.tolerance,
                         maxiter=args.max_cycles,
-                        cycle=cycle[0],
+                        cycle="V" if kind == "ruge-stuben" else cycle[0],
                         accel="cg" if cycle.endswith("cg") else None,
                         residuals=res,
                     )

@@ -259,7 +259,10 @@
 //!   series, full weighting across; `scripts/mg-coarse-operators.py`'s `series` and
 //!   `series-op`, not built in the crate) do not: F-cycles with conjugate gradients took 30,
 //!   44, 54 and 15, 22, 25 cycles at n = 33, 65, 129 against the rediscretised 10, 13, 15,
-//!   and plain V-cycles diverged (seventeenth session, `HISTORY.md`). Also tried and
+//!   and plain V-cycles diverged (seventeenth session, `HISTORY.md`). Classical algebraic
+//!   multigrid (pyamg's Ruge–Stüben on the same operator, the script's `ruge-stuben`), whose
+//!   coarse grids follow the interface, grows too: V + CG 5, 5, 7 cycles at n = 33, 65, 129
+//!   (+40 %). Also tried and
 //!   dropped (`HISTORY.md`): relaxing the cloud's surface shell (8, 10, 12 → 8, 10, 11 cycles
 //!   at n = 31, 63, 127), boxes that follow the largest residual (FLD-LP 14, 20, 43, 125 → 11,
 //!   19, 27, 106 cycles but 107 s against 68–72 s at 255³), and a Jacobi-smoothed
