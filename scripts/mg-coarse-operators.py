@@ -70,30 +70,7 @@ def medium(n, outside):
 
 def operator(h, d, absorb):
     """CSR matrix of -div(k grad) + absorb on the interior voxels, k_face = (D_p + D_q)/2."""
-    n = d.shape[0]
-    m = n - 2
-    index = -np.ones((n, n, n), dtype=np.int64)
-    index[1:-1, 1:-1, 1:-1] = np.arange(m**3).reshape(m, m, m)
-    inner = (slice(1, -1),) * 3
-    diag = absorb[inner].copy()
-    rows, cols, vals = [], [], []
-    for axis in range(3):
-        for step in (-1, 1):
-            nb = list(inner)
-            nb[axis] = slice(1 + step, n - 1 + step)
-            k = 0.5 * (d[inner] + d[tuple(nb)]) / h**2
-            diag += k
-            j = index[tuple(nb)]
-            keep = j >= 0
-            rows.append(index[inner][keep])
-            cols.append(j[keep])
-            vals.append(-k[keep])
-    rows.append(np.arange(m**3))
-    cols.append(np.arange(m**3))
-    vals.append(diag.ravel())
-    return sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m**3, m**3)
-    )
+    return face_operator(fine_faces(h, d), absorb)
 
 
 def full_weighting(v, skip=None):
