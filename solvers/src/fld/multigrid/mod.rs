@@ -262,7 +262,12 @@
 //!   and plain V-cycles diverged (seventeenth session, `HISTORY.md`). Classical algebraic
 //!   multigrid (pyamg's Ruge–Stüben on the same operator, the script's `ruge-stuben`), whose
 //!   coarse grids follow the interface, grows too: V + CG 5, 5, 7 cycles at n = 33, 65, 129
-//!   (+40 %). Also tried and
+//!   (+40 %). That agrees with the theory of multigrid-preconditioned CG for jump
+//!   coefficients (finite elements; Xu and Zhu, M3AS 2008, and for diffusion with absorption
+//!   Kolev, Xu and Zhu, arXiv:1411.7092): apart from a few small eigenvalues the effective
+//!   condition number is bounded uniformly in the jump but only up to a factor logarithmic in
+//!   the mesh size, so such bounds allow a slow growth with n and none promises a flat count.
+//!   Also tried and
 //!   dropped (`HISTORY.md`): relaxing the cloud's surface shell (8, 10, 12 → 8, 10, 11 cycles
 //!   at n = 31, 63, 127), boxes that follow the largest residual (FLD-LP 14, 20, 43, 125 → 11,
 //!   19, 27, 106 cycles but 107 s against 68–72 s at 255³), and a Jacobi-smoothed
