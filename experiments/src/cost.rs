@@ -24,17 +24,17 @@
 //! collisions per path = 3.65·10⁷ collisions/s on 2 cores, 1.8·10⁷ per core. The 2-core
 //! budget is then 5.2·10¹¹ operations. Estimates of the default full runs `figures` makes
 //! (listed with `SCATTERBENCH_WORK_BUDGET=1`, which refuses every run with its estimate),
-//! against the measured wall time of the committed results on this machine:
+//! against the measured wall time of the committed results (on the hosts that made them):
 //! `point_source` 2.6·10¹⁰ (12 min; the committed run took 8 s: its solves are multigrid,
 //! costed as SOR, and the solve model takes the slowest case for all), `multigrid_scaling`
-//! 1.2·10¹¹ (57 min; 3.6 min), `convergence` 4.1·10⁹ (1.9 min; 21 s), `lbm_diffusion_limit` 9.9·10¹⁰ (46 min; 43 s, the step cap), `accuracy_cost`
-//! 3.1·10¹⁰ with RDE (14.3 min; 14.3 min, partly beside a CI run), `renderings` 1.1·10¹⁰
-//! (4.9 min; 2.6 min), `pt_point_source`
-//! 4.6·10⁹ (2.1 min; 2.1 min), `pt_render` 4.1·10⁸ (11 s; 12 s), `rde_steady` 9.9·10⁹
-//! (4.6 min; 8 s: the steady solves take far fewer steps than the cap the model assumes),
-//! `rde_stability` 1.4·10⁹ (40 s; 16 s), `rde_controls` 5.3·10⁸ (15 s; 1.4 s). So the largest, `multigrid_scaling`, is 24 % of
-//! the 2-core budget. The test `tests/bounded.rs` refuses an absurd run of each binary and
-//! lets `--force` through.
+//! 1.2·10¹¹ (57 min; 3.6 min), `convergence` 4.1·10⁹ (1.9 min; 21 s), `lbm_diffusion_limit`
+//! 9.9·10¹⁰ (46 min; 43 s, the step cap), `accuracy_cost` 3.1·10¹⁰ with RDE (14.3 min;
+//! 14.3 min, partly beside a CI run), `renderings` 1.1·10¹⁰ (4.9 min; 2.6 min),
+//! `pt_point_source` 4.6·10⁹ (2.1 min; 2.1 min), `pt_render` 4.1·10⁸ (11 s; 12 s),
+//! `rde_steady` 9.9·10⁹ (4.6 min; 8 s: the steady solves take far fewer steps than the cap
+//! the model assumes), `rde_stability` 1.4·10⁹ (40 s; 16 s), `rde_controls` 5.3·10⁸ (15 s;
+//! 1.4 s). So the largest, `multigrid_scaling`, is 24 % of the 2-core budget. The test
+//! `tests/bounded.rs` refuses an absurd run of each binary and lets `--force` through.
 
 use anyhow::{Result, bail};
 
@@ -299,14 +299,14 @@ pub fn solve_steps(n: usize, rel: f64, max_steps: usize) -> f64 {
 /// sweep of `solvers::fld`) with a limiter that depends on φ (FLD), relative to the nominal
 /// operation (one path-tracer collision). *Measured* (2026-12-07, 2-vCPU AMD EPYC family 25
 /// (Zen 3), triad 25 GB/s by the `benches` bandwidth probe in the same session): the
-/// module docs' `pt_point_source --albedo 0.99 --g 0 --paths 400000` ran 2.24 and
-/// 2.37·10⁵ paths/s, 2.2·10⁷ collisions/s; `point_source --n 127 --solver sor --limiter
-/// cda,lp --albedo 0.5 --boundary zero` took 277 CDA sweeps in 1.78–1.91 s and 497 FLD-LP
-/// sweeps in 7.77 s, 3.1–3.4 and 7.6 ns per voxel update, i.e. 1/14 and 1/6 of a
+/// [`NOMINAL_RATE`] measurement's `pt_point_source --albedo 0.99 --g 0 --paths 400000` ran
+/// 2.24 and 2.37·10⁵ paths/s, 2.2·10⁷ collisions/s; `point_source --n 127 --solver sor
+/// --limiter cda,lp --albedo 0.5 --boundary zero` took 277 CDA sweeps in 1.78–1.91 s and
+/// 497 FLD-LP sweeps in 7.77 s, 3.1–3.4 and 7.6 ns per voxel update, i.e. 1/14 and 1/6 of a
 /// collision. The sweeps are memory-bound and the collisions are not, so the ratio moves
-/// with a host's bandwidth: on the Zen 5 host of the multigrid module docs (triad 44–48 GB/s)
-/// the same CDA sweep took 1.4 ns a voxel. The constants leave a margin over the slower
-/// host.
+/// with a host's bandwidth: on the Zen 5 host of the multigrid module docs (triad 44–48
+/// GB/s) the same CDA sweep took 1.4 ns a voxel. The constants leave a margin over the
+/// slower host.
 pub const FLD_VOXEL: f64 = 1.0 / 5.0;
 
 /// As [`FLD_VOXEL`] for CDA (constant D: the sweep evaluates no limiter).
