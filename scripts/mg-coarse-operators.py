@@ -222,17 +222,8 @@ def face_operator(faces, absorb):
     )
 
 
-def hierarchy(n, outside, kind):
-    sigma_t, albedo, emission = medium(n, outside)
-    h = 1.0 / n
-    d = 1.0 / (3.0 * np.maximum(sigma_t, SIGMA_EPS))
-    absorb = sigma_t * (1.0 - albedo)
-    a = operator(h, d, absorb)
-    if kind == "ruge-stuben":
-        solver = pyamg.ruge_stuben_solver(a, max_coarse=100)
-        gs = ("gauss_seidel", {"sweep": "symmetric", "iterations": 1})
-        change_smoothers(solver, presmoother=gs, postsmoother=gs)
-        return solver, emission[1:-1, 1:-1, 1:-1].ravel()
+def geometric(n, h, d, absorb, a, kind):
+    """The geometric hierarchy of coarse operator `kind` over the fine operator `a`."""
     levels = []
     m = n - 2
     faces = fine_faces(h, d)
@@ -263,7 +254,19 @@ def hierarchy(n, outside, kind):
     coarsest = pyamg.multilevel.MultilevelSolver.Level()
     coarsest.A = a
     levels.append(coarsest)
-    solver = pyamg.multilevel.MultilevelSolver(levels, coarse_solver="splu")
+    return pyamg.multilevel.MultilevelSolver(levels, coarse_solver="splu")
+
+
+def hierarchy(n, outside, kind):
+    sigma_t, albedo, emission = medium(n, outside)
+    h = 1.0 / n
+    d = 1.0 / (3.0 * np.maximum(sigma_t, SIGMA_EPS))
+    absorb = sigma_t * (1.0 - albedo)
+    a = operator(h, d, absorb)
+    if kind == "ruge-stuben":
+        solver = pyamg.ruge_stuben_solver(a, max_coarse=100)
+    else:
+        solver = geometric(n, h, d, absorb, a, kind)
     gs = ("gauss_seidel", {"sweep": "symmetric", "iterations": 1})
     change_smoothers(solver, presmoother=gs, postsmoother=gs)
     return solver, emission[1:-1, 1:-1, 1:-1].ravel()
