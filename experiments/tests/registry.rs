@@ -272,8 +272,8 @@ fn lbm_convergence_quick_converges_in_about_2n_steps() {
     }
 }
 
-/// LB Eq 19 quick (49³, σa = 0.1): where the diffusion limit applies (Kn ≤ 0.5: σt = 0.5 and
-/// 1 at r_min = 4) the fitted D is within 5 % of the formula (measured −2.7 % and +0.01 %),
+/// LB Eq 19 quick (49³, σa = 0.1): where the diffusion limit applies (Kn ≤ 0.5: σt = 0.75
+/// at r_min = 4, Kn = 0.33) the fitted D is within 5 % of the formula (measured −0.20 %),
 /// and at σt = 0.1 (Kn = 2.5) it is not (measured 0.48×): the figure's point.
 #[test]
 fn lbm_diffusion_limit_quick_matches_eq_19_where_it_applies() {

@@ -229,10 +229,29 @@ impl GpuContext {
         Self::from_adapter(instance, adapter)
     }
 
-    /// Creates the device on a chosen adapter.
+    /// Creates the device on a chosen adapter, with the adapter's full limits.
     pub fn from_adapter(
         instance: wgpu::Instance,
         adapter: wgpu::Adapter,
+    ) -> Result<Self, GpuError> {
+        let limits = adapter.limits();
+        Self::with_limits(instance, adapter, limits)
+    }
+
+    /// A second device on this context's adapter whose storage-binding limit is at most
+    /// `bytes` (every other limit the adapter's), so that the paths a smaller device takes
+    /// (LPM's slice streaming once its T exceeds one binding) run, and are tested, on any
+    /// adapter at a size that is cheap on lavapipe.
+    pub fn with_binding_limit(&self, bytes: u64) -> Result<Self, GpuError> {
+        let mut limits = self.adapter.limits();
+        limits.max_storage_buffer_binding_size = limits.max_storage_buffer_binding_size.min(bytes);
+        Self::with_limits(self.instance.clone(), self.adapter.clone(), limits)
+    }
+
+    fn with_limits(
+        instance: wgpu::Instance,
+        adapter: wgpu::Adapter,
+        required_limits: wgpu::Limits,
     ) -> Result<Self, GpuError> {
         let info = adapter.get_info();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
@@ -244,7 +263,7 @@ impl GpuContext {
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("scatterbench"),
             required_features,
-            required_limits: adapter.limits(),
+            required_limits,
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,

@@ -95,10 +95,14 @@
 //!   budget halfway between the S = 1 (1.09 MB) and the unstreamed (2.37 MB) device bytes
 //!   makes `Auto` pick S = 7 (1.73 MB ≤ the budget) with the unstreamed results, and a budget
 //!   below S = 1 is a typed error.
-//!   **128³, m = 5 on lavapipe** (`gpu_128_cubed_solves_with_streaming`): Auto S = 27, T
-//!   132.7 MB ≤ the 134.2 MB binding (unstreamed 629 MB), 322 MB of device buffers, one order
-//!   in 69 s wall (lavapipe on the shared 2 cores, under load), finite, positive, power
-//!   imbalance 1.8·10⁻⁶.
+//!   **128³, m = 5 on lavapipe** (measured 2026-12-03 by the test that is now the 64³ one
+//!   below): Auto S = 27, T 132.7 MB ≤ the 134.2 MB binding (unstreamed 629 MB), 322 MB of
+//!   device buffers, one order in 69 s wall (lavapipe on the shared 2 cores, under load),
+//!   finite, positive, power imbalance 1.8·10⁻⁶. **64³, m = 5 under a 16 MiB binding**
+//!   (`gpu_64_cubed_solves_with_streaming_under_a_16_mib_binding`, a device with the binding
+//!   capped by `GpuContext::with_binding_limit`, so the streaming runs on any adapter; on
+//!   lavapipe 2026-12-07): Auto S = 13, T 15.97 MB ≤ 16.78 MB (unstreamed 78.6 MB), 42.6 MB
+//!   of device buffers, one order in 7.4 s, imbalance 7.8·10⁻⁶.
 //! * **Measured on lavapipe** (llvmpipe, Mesa 22.3.6; `gpu_tests.rs`). T18: 12×10×14 white
 //!   noise, environment + directional light, m = 5, 3 orders: GPU vs CPU-f32 max relative
 //!   difference 3.2·10⁻⁷ over I, U, φ and φ^p where the CPU value is above 10⁻⁶ of its

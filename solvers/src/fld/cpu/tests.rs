@@ -289,13 +289,24 @@ fn fld_solution_is_mirror_symmetric() {
 /// between neighbouring voxels: φ and D stay finite and φ ≥ 0 at every iteration. The solve
 /// reaches the f32 tolerance for ω ≤ 1.7 on media up to 50 % vacuum; at ω = 1.9, and on
 /// 95 %-vacuum white noise (where FLD stalls, see the `fld` module docs), it is only required
-/// to stay bounded.
+/// to stay bounded, for at most `BOUNDED_ITERATIONS` iterations.
 #[test]
 fn f32_is_finite_and_nonnegative_on_hard_media() {
+    /// The iterations a run that need not converge is watched for. *Why not 30 000*: at ω =
+    /// 1.9 on the 10⁴-contrast medium without vacuum every limiter other than CDA runs to the
+    /// cap with R̄/j̄ flat at 0.33–0.46 (measured 2026-12-07), and those five runs were 80 %
+    /// of this test's 31 s; the converging runs need 244–3854 iterations.
+    const BOUNDED_ITERATIONS: usize = 5_000;
     for (seed, vac, cap) in [(1u64, 0.0, 30_000), (2, 0.5, 30_000), (3, 0.95, 2_000)] {
         let medium = scenes::random_heterogeneous::<f32>([17, 16, 15], seed, vac).unwrap();
         for limiter in FluxLimiter::ALL {
             for omega in [1.0, 1.7, 1.9] {
+                let must_converge = omega <= 1.7 && vac <= 0.5;
+                let cap = if must_converge {
+                    cap
+                } else {
+                    cap.min(BOUNDED_ITERATIONS)
+                };
                 let cfg = FldConfig {
                     limiter,
                     omega,
@@ -319,7 +330,7 @@ fn f32_is_finite_and_nonnegative_on_hard_media() {
                     }
                 }
                 let last = *s.residuals().last().unwrap();
-                if omega <= 1.7 && vac <= 0.5 {
+                if must_converge {
                     assert!(
                         last < s.tolerance(),
                         "seed {seed} {limiter} ω={omega}: not converged, R̄/j̄ = {last}"
