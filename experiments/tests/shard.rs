@@ -381,11 +381,11 @@ fn atlas_tasks_merge_like_a_single_run() {
     assert!(o.status.success());
     let list = String::from_utf8_lossy(&o.stdout).into_owned();
     let lines: Vec<&str> = list.lines().collect();
-    // One reference, two path-tracer points, two CDA settings and CDA's multigrid twin
-    // (`cda:mg`, its `Method::param_settings`).
-    assert_eq!(lines.len(), 6, "{list}");
+    // One reference, two path-tracer points, the quick ladder's CDA setting and CDA's
+    // multigrid twin (`cda:mg`, its `Method::param_settings`).
+    assert_eq!(lines.len(), 5, "{list}");
     assert!(
-        lines[0].contains("reference") && lines[3].contains("cda") && lines[5].contains("cda:mg"),
+        lines[0].contains("reference") && lines[3].contains("cda") && lines[4].contains("cda:mg"),
         "{list}"
     );
     let mut whole = base.clone();
@@ -401,13 +401,11 @@ fn atlas_tasks_merge_like_a_single_run() {
     }
     let (_, err) = run(
         env!("CARGO_BIN_EXE_merge"),
-        &strings(&[
-            "--out", "partial", "task0", "task1", "task3", "task4", "task5",
-        ]),
+        &strings(&["--out", "partial", "task0", "task1", "task3", "task4"]),
         &dir,
     );
     assert!(
-        err.contains("task 2 of this 6-task sweep is missing"),
+        err.contains("task 2 of this 5-task sweep is missing"),
         "{err}"
     );
     let mut m = strings(&["--out", "merged"]);
@@ -434,8 +432,8 @@ fn atlas_tasks_merge_like_a_single_run() {
         );
     }
     let mut bad = base.clone();
-    bad.extend(strings(&["--task", "6"]));
+    bad.extend(strings(&["--task", "5"]));
     let (success, err) = run(bin, &bad, &dir);
-    assert!(!success && err.contains("this sweep has 6 tasks"), "{err}");
+    assert!(!success && err.contains("this sweep has 5 tasks"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -174,11 +174,12 @@ fn sharded_runs_through_slurm_merge_bit_identically() {
         &atlas,
         files,
     );
-    // … and as its 6 tasks (reference, 2 path-tracer points, 2 CDA settings, `cda:mg`).
+    // … and as its 5 tasks (reference, 2 path-tracer points, the quick ladder's CDA setting,
+    // `cda:mg`).
     through_slurm(
         "atlas-tasks",
         &["--tasks"],
-        6,
+        5,
         "accuracy_cost",
         &atlas,
         files,

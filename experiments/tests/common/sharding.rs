@@ -19,7 +19,8 @@ pub fn csv_without(path: &Path, skip: &[&str]) -> Vec<Vec<String>> {
 }
 
 /// Flags of a small `accuracy_cost` run: the emissive cloud at 12×12, the path tracer and
-/// CDA, a 64-spp reference (5 tasks: the reference, 2 path-tracer points, 2 CDA settings).
+/// CDA, a 64-spp reference (5 tasks: the reference, 2 path-tracer points, the quick ladder's
+/// CDA setting and CDA's multigrid twin `cda:mg`).
 pub fn small_atlas() -> Vec<String> {
     let scene = super::spawn::workspace().join("scenes/emissive_cloud.toml");
     [
