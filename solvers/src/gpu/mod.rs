@@ -69,7 +69,7 @@ pub enum GpuError {
     },
     /// The problem does not fit the device's limits; checked before anything is allocated.
     #[error(
-        "{what} needs {needed} bytes but the GPU adapter {adapter:?} allows at most {limit} ({limit_name}); use a smaller grid or the CPU backend"
+        "{what} needs {needed} bytes but the GPU device on {adapter:?} allows at most {limit} ({limit_name}); use a smaller grid or the CPU backend"
     )]
     TooLarge {
         /// What was being allocated.
@@ -335,7 +335,8 @@ impl GpuContext {
         }
     }
 
-    /// The device's limits (the adapter's full limits were requested).
+    /// The device's limits: the adapter's full limits, or those of
+    /// [`GpuContext::with_binding_limit`].
     pub fn limits(&self) -> wgpu::Limits {
         self.device.limits()
     }

@@ -492,7 +492,7 @@ fn t16_gpu_streamed_equals_unstreamed() {
 /// 64³ (m = 5) solves on the GPU with slice streaming where the unstreamed T exceeds the
 /// storage-binding limit, on a device whose binding is capped at 16 MiB
 /// (`GpuContext::with_binding_limit`), so the streaming runs on every adapter (lavapipe's
-/// own 128 MiB needed 128³, 56 s of the suite; a real GPU's binding holds 128³ unstreamed;
+/// own 128 MiB needed 128³, 56 s of the suite; a real GPU's binding typically holds 128³ unstreamed;
 /// `t20_hard_inputs_on_gpu` keeps the refusal of `Streaming::Whole`): `Auto` picks the
 /// largest S whose T fits one binding, the device bytes equal our formula, and one order on a
 /// homogeneous σt h = 0.05, α = 0.9 cube under L = 1 is finite, positive and balanced

@@ -18,7 +18,8 @@
 //!   (measured, f64: within 2.1·10⁻¹¹ of E_src on both chambers of a 16² box joined by a
 //!   one-voxel gap after 63 531 iterations; with the gap closed at σ = 0.05 the near chamber
 //!   is within 3.9·10⁻¹² and the far one stays at 7.6·10⁻¹⁷¹; f32 creeps by ulps through the
-//!   gap, 8.6·10⁻⁵ at the 4·10⁵ cap; `f25_…_floods_the_connected_region`).
+//!   gap, 8.6·10⁻⁵ at every cap from 3·10⁴ to 4·10⁵ iterations (the test's is 10⁵);
+//!   `f25_…_floods_the_connected_region`).
 //! * **Walls.** Zero-flux Neumann: faces to outside the grid carry no flux (the thesis's
 //!   "floods to the source level" needs no leak through the box).
 //! * **Time step.** λ ≤ 1/(2d) with d the number of axes longer than one voxel (thesis

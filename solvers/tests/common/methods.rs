@@ -210,9 +210,9 @@ pub fn mirror_symmetric(m: &dyn Method, b: &Backend<'_>) {
 }
 
 /// Degree-1 homogeneity in the source: scaling q by 10⁻³ and 10³ scales φ by the same factor
-/// after the same number of steps (20: a floor or a step that does not scale with q breaks
-/// it at the first step it acts; 40 until 2026-12-07, when LPM's 120 orders on lavapipe took
-/// 13–14 s per variant), up to rounding.
+/// after the same number of steps (20), up to rounding. 40 until 2026-12-07, when LPM's 120
+/// orders took 13–14 s per variant on lavapipe; a scaling error that first acts after step 20
+/// would now go unseen here.
 pub fn homogeneous_in_source(m: &dyn Method, b: &Backend<'_>) {
     let base = symmetric_medium();
     let t = Tolerance::fixed_steps(20);

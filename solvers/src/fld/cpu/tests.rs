@@ -286,7 +286,8 @@ fn fld_solution_is_mirror_symmetric() {
 }
 
 /// f32, every limiter, SOR up to 1.9, media with vacuum, saturated albedo and 10⁴ contrast
-/// between neighbouring voxels: φ and D stay finite and φ ≥ 0 at every iteration. The solve
+/// between neighbouring voxels: the residual stays finite at every iteration, and φ finite and
+/// ≥ 0 every 500 iterations and at the end, D finite and > 0 at the end. The solve
 /// reaches the f32 tolerance for ω ≤ 1.7 on media up to 50 % vacuum; at ω = 1.9, and on
 /// 95 %-vacuum white noise (where FLD stalls, see the `fld` module docs), it is only required
 /// to stay bounded, for at most `BOUNDED_ITERATIONS` iterations.
