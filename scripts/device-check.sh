@@ -30,8 +30,8 @@ export SCATTERBENCH_REQUIRE_GPU=1
 if [ "${1:-}" != "--skip-build" ]; then
     step build 240 cargo build --release -p solvers -p benches -p experiments --tests --benches --bins
 fi
-step gpu-tests 120 cargo test --release -p solvers --test fld_multigrid_gpu --test pop_gpu \
-    --test conformance --test lbm_conformance -- --test-threads 1
+step gpu-tests 120 cargo test --release -p solvers --test integration -- fld_multigrid_gpu:: \
+    pop_gpu:: conformance:: --test-threads 1
 step bench-diffusion-gpu 60 cargo bench -p benches --bench diffusion_gpu
 step bench-pop 60 cargo bench -p benches --bench pop -- gpu
 cp -r results/bench "$OUT/bench" 2>/dev/null

@@ -22,9 +22,7 @@
 use solvers::method::{self, Problem, Tolerance};
 use solvers::{Backend, Precision};
 
-#[path = "support/lit_cube.rs"]
-mod lit_cube;
-use lit_cube::{lit_cube, rel_l2, tight_solve};
+use crate::lit_cube::{lit_cube, rel_l2, tight_solve};
 
 #[test]
 fn the_default_stop_is_within_one_percent_of_a_tight_solve_on_albedo_1_cubes() {

@@ -6,7 +6,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 
 use solvers::fld::multigrid::{CoarseD, CoarseOp, CpuMultigrid, Cycle, GpuMultigrid, MgConfig};
 use solvers::fld::{Boundary, FldConfig, FldSolution, FluxLimiter, GpuFld};

@@ -10,7 +10,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod fuzz_corpus;
+use crate::fuzz_corpus;
 
 use fuzz_corpus::{Mutation, apply, config, mutant, scene_dir, seed_vol, seeds};
 use proptest::prelude::*;

@@ -5,7 +5,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::needless_range_loop)]
 
-mod common;
+use crate::common;
 
 use solvers::gpu::GpuContext;
 use solvers::noise::SplitMix64;

@@ -166,7 +166,7 @@ fn t24_fig8_residuum_vs_full() {
     assert!(eq10.iso.is_none() && *d_phi == 0.0);
 }
 
-mod common;
+use crate::common;
 
 /// The residuum variants have no GPU kernel: on the GPU backend `pop:residuum` and
 /// `pop:residuum-fld` are a typed [`solvers::SolverError::Unsupported`] naming the variant,

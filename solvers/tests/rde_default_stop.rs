@@ -14,9 +14,7 @@
 use solvers::method::{self, Params, Problem, Tolerance};
 use solvers::{Backend, Precision};
 
-#[path = "support/lit_cube.rs"]
-mod lit_cube;
-use lit_cube::{lit_cube, rel_l2, tight_solve};
+use crate::lit_cube::{lit_cube, rel_l2, tight_solve};
 
 #[test]
 fn the_rde_default_stop_is_within_one_percent_of_a_tight_solve_and_the_residual_stop_is_not() {

@@ -5,6 +5,7 @@
 //! "<test>: skipped: no GPU adapter" and passes, unless `SCATTERBENCH_REQUIRE_GPU=1` (CI),
 //! which makes them fail.
 
+#[macro_use]
 pub mod methods;
 
 use solvers::gpu::GpuContext;
