@@ -1,18 +1,10 @@
 //! The `solvers` integration tests, one test binary (`cargo test -p solvers --test integration`;
 //! one file's tests: append its module name as a filter, e.g. `-- conformance::`).
 //!
-//! *Why one binary:* in a release build every test binary compiles its own copy of the
-//! solvers' generic code (`CpuFld<f32>`, `CpuMultigrid<f64>`, …), since Rust shares generic
-//! instances across crates only in unoptimised builds. As 18 binaries, a clean
-//! `cargo test --workspace --release` spent 630 of its 2456 crate-seconds on six of them
-//! (`fld_multigrid_gpu` 128 s, `fld_multigrid` 118, `energy_balance` 114, `conformance` 112,
-//! `analytic` 110, `marshak` 49; 2-vCPU AMD EPYC Zen 3, cargo `--timings`, 2026-12-08), most
-//! of it the same instances compiled again.
-//!
-//! The files keep their names and their docs; the GPU tests share one device (`common`), as
-//! they did within each former binary, and run one at a time.
-
-#![allow(clippy::unwrap_used, clippy::expect_used)]
+//! *Why one binary:* a release build compiles the solvers' generic code once per test
+//! binary; as 18 binaries that was most of a clean test build's extra time (CONTRIBUTING.md,
+//! "The test suite's time", has the measurement). The files keep their names and their docs
+//! (each its own `allow`s); the GPU tests share one device (`common`) and run one at a time.
 
 #[macro_use]
 mod common;

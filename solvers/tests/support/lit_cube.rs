@@ -2,6 +2,7 @@
 //! at downsample 1 (the baked q_ri of its one light as the source), and the relative L2
 //! distance and the tight reference solve the default-stop tests measure with. Shared by
 //! `default_stop.rs` and `rde_default_stop.rs` (declared once in `main.rs`).
+#![allow(clippy::unwrap_used)]
 
 use solvers::method::{Fluence, Method, Problem, Tolerance};
 use solvers::pipeline::{bake, restrict};
