@@ -1,7 +1,7 @@
 //! Shared plumbing: output directories, provenance (`meta.json`), CSV writing, progress bars.
 
 use anyhow::{Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -18,7 +18,8 @@ pub struct CommonArgs {
     /// CI-sized run: small grids, few parameter values.
     #[arg(long)]
     pub quick: bool,
-    /// Hide progress bars (they are also hidden when stderr is not a terminal).
+    /// Hide progress: the bars on a terminal, and the plain lines written instead when stderr
+    /// is not one (at most one every `SCATTERBENCH_PROGRESS_SECONDS`, default 60; 0 = none).
     #[arg(long)]
     pub no_progress: bool,
     /// Run even when the cost estimate exceeds the work budget (see `experiments::cost`:
@@ -709,8 +710,8 @@ impl Ctx {
         Ok(b)
     }
 
-    /// A progress bar over `len` steps (hidden with `--no-progress` or when stderr is no
-    /// terminal).
+    /// A progress bar over `len` steps (hidden with `--no-progress`; plain lines when stderr is
+    /// no terminal, [`crate::progress`]).
     pub fn progress(&self, len: u64, what: &str) -> ProgressBar {
         bar(len, self.no_progress, what)
     }
@@ -718,18 +719,7 @@ impl Ctx {
     /// A spinner with elapsed time for one long step without a step count (hidden like
     /// [`Ctx::progress`]); finish it with `finish_and_clear`.
     pub fn spinner(&self, what: &str) -> ProgressBar {
-        if self.no_progress {
-            return ProgressBar::hidden();
-        }
-        let pb = ProgressBar::new_spinner();
-        if let Ok(style) =
-            ProgressStyle::with_template("{spinner} {prefix} [{elapsed_precise}] {msg}")
-        {
-            pb.set_style(style);
-        }
-        pb.set_prefix(what.to_string());
-        pb.enable_steady_tick(std::time::Duration::from_millis(250));
-        pb
+        crate::progress::bar(None, self.no_progress, what)
     }
 
     /// Path of a file in the output directory (the staging directory while the run is in
@@ -877,23 +867,37 @@ fn git_revision_at(dir: &Path) -> String {
     }
 }
 
-/// Host name, CPU model, logical cores, OS and architecture.
+/// Host name, CPU model (with its x86 family and model numbers and L3 size where Linux says:
+/// a virtual machine's model name is often just "AMD EPYC", which hosts of this project have
+/// worn with Zen 3 and Zen 5 cores of twice the bandwidth), logical cores, OS and
+/// architecture.
 pub fn machine() -> serde_json::Value {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|s| s.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown".to_string());
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let field = |key: &str| {
+        cpuinfo
+            .lines()
+            .take_while(|l| !l.trim().is_empty())
+            .find_map(|l| {
+                let (k, v) = l.split_once(':')?;
+                (k.trim() == key).then(|| v.trim().to_string())
+            })
+    };
+    let cpu = field("model name").unwrap_or_else(|| "unknown".to_string());
+    let cpu_id = match (field("cpu family"), field("model")) {
+        (Some(f), Some(m)) => format!("family {f} model {m}"),
+        _ => "unknown".to_string(),
+    };
+    let l3 = std::fs::read_to_string("/sys/devices/system/cpu/cpu0/cache/index3/size")
+        .map(|s| s.trim().to_string())
+        .unwrap_or_else(|_| "unknown".to_string());
     let host = std::fs::read_to_string("/etc/hostname")
         .map(|s| s.trim().to_string())
         .unwrap_or_else(|_| "unknown".to_string());
     serde_json::json!({
         "hostname": host,
         "cpu": cpu,
+        "cpu_id": cpu_id,
+        "l3": l3,
         "logical_cores": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
         "rayon_threads": rayon::current_num_threads(),
         "os": std::env::consts::OS,
@@ -901,23 +905,14 @@ pub fn machine() -> serde_json::Value {
     })
 }
 
-/// A progress bar over `len` steps (hidden with `--no-progress` or when stderr is no terminal).
+/// A progress bar over `len` steps (hidden with `--no-progress`; plain lines when stderr is no
+/// terminal, [`crate::progress`]).
 pub fn progress(len: u64, args: &CommonArgs, what: &str) -> ProgressBar {
     bar(len, args.no_progress, what)
 }
 
 fn bar(len: u64, hidden: bool, what: &str) -> ProgressBar {
-    if hidden {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::new(len);
-    if let Ok(style) =
-        ProgressStyle::with_template("{prefix:>18} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}")
-    {
-        pb.set_style(style);
-    }
-    pb.set_prefix(what.to_string());
-    pb
+    crate::progress::bar(Some(len), hidden, what)
 }
 
 /// Parses one item of a comma-separated list flag (`value_parser = list_item::<f64>`, with

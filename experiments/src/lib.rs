@@ -35,6 +35,7 @@ pub mod pop_ordinates;
 pub mod pop_radial;
 pub mod pop_residuum;
 pub mod pop_weaknesses;
+pub mod progress;
 pub mod pt_point_source;
 pub mod pt_render;
 pub mod pt_slab;

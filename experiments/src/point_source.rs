@@ -184,7 +184,9 @@ pub struct RunRow {
     /// `multigrid`, or for `auto` e.g. `sor>multigrid` (SOR did not finish in its sweep
     /// budget, multigrid solved from scratch).
     pub solved_by: String,
-    /// SOR factor used (multigrid smooths with ω = 1).
+    /// The relaxation factor of the solver that produced φ: SOR's, or multigrid's smoother
+    /// (`MgConfig::smoother_omega`, 1.2 by default; until 2026-12-08 this column wrote 1 for
+    /// multigrid, the smoother's factor before it was measured and raised).
     pub omega: f64,
     /// Iterations run (multigrid: cycles).
     pub iterations: usize,
@@ -559,10 +561,9 @@ fn solve_case(
         precision: backend.precision().name(),
         backend: backend.kind(),
         solver: solver.name(),
-        omega: if sol.trace.solver_name() == "sor" {
-            omega
-        } else {
-            1.0
+        omega: match (&solver, sol.trace.solver_name()) {
+            (fld::Solver::Multigrid(mg) | fld::Solver::Auto(mg), "multigrid") => mg.smoother_omega,
+            _ => omega,
         },
         iterations: sol.steps,
         work_units: sol.trace.work_units,

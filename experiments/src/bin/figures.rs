@@ -21,7 +21,8 @@ struct Args {
     /// CI-sized runs.
     #[arg(long)]
     quick: bool,
-    /// Hide progress bars.
+    /// Hide progress (each experiment's bars, or the plain lines written instead when stderr is
+    /// not a terminal; see `experiments::progress`). The `[i/N]` line per run stays.
     #[arg(long)]
     no_progress: bool,
     /// Passed to every experiment that takes `--backend`.
