@@ -547,6 +547,11 @@ impl FldConfig {
 
     /// The SOR factor that is optimal for the Poisson equation on an `n`-voxel-wide grid,
     /// 2/(1 + sin(π/n)). A good default for weakly absorbing media; absorption lowers the optimum.
+    /// Too large for the max limiter (F = 1/max(3, R), a kink at R = 3) on fine grids: on the
+    /// 127³ point source (τ = 4, albedo 0.1–0.7) SOR at this ω (1.952) stays at R̄/j̄
+    /// 1.7–4.0·10⁻² for 20 000 sweeps, where ω = 1.9 converges in 914 (albedo 0.5; 31³ and 63³
+    /// converge at this ω; `multigrid/HISTORY.md`, 2026-12-08). Such a solve ends at its cap,
+    /// never as converged.
     pub fn poisson_optimal_omega(n: usize) -> f64 {
         2.0 / (1.0 + (std::f64::consts::PI / n.max(2) as f64).sin())
     }
