@@ -409,12 +409,18 @@ pub fn readme(root: &Path, outcomes: &[RunOutcome], quick: bool) -> Result<Strin
     let total: f64 = times.iter().flatten().fold(0.0, |a, b| a + b);
     // Where each run was made: `figures --only` reruns some folders and keeps the others, so
     // the folders may come from several revisions and hosts; the header must not claim one.
+    // (`cpu_id` is in the `meta.json` of runs since 2026-12-08.)
     let origin = |m: Option<&serde_json::Value>| {
+        let id = field(m, &["machine", "cpu_id"]);
         format!(
-            "`{}` on {}, {} ({} cores)",
+            "`{}` on {}{} ({} cores)",
             field(m, &["git_revision"]),
             field(m, &["machine", "cpu"]),
-            field(m, &["machine", "cpu_id"]),
+            if id == "unknown" {
+                String::new()
+            } else {
+                format!(", {id}")
+            },
             field(m, &["machine", "logical_cores"]),
         )
     };
