@@ -1235,11 +1235,7 @@ fn run_in(ctx: &mut Ctx, args: &Args) -> Result<Vec<Point>> {
                     "{} {} [{}] {}: {:.3} s, error {:.4}",
                     p.scene, p.method, p.setting, p.backend, p.seconds, p.error
                 );
-                if bar.is_hidden() {
-                    eprintln!("{line}");
-                } else {
-                    bar.println(line);
-                }
+                crate::progress::note(&bar, &line);
             }
             bar.inc(1);
         }

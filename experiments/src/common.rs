@@ -867,7 +867,7 @@ fn git_revision_at(dir: &Path) -> String {
     }
 }
 
-/// Host name, CPU model (with its x86 family and model numbers and L3 size where Linux says:
+/// Host name, CPU model (with its x86 family and model numbers and cpu 0's L3 where Linux says:
 /// a virtual machine's model name is often just "AMD EPYC", which hosts of this project have
 /// worn with Zen 3 and Zen 5 cores of twice the bandwidth), logical cores, OS and
 /// architecture.
@@ -887,9 +887,16 @@ pub fn machine() -> serde_json::Value {
         (Some(f), Some(m)) => format!("family {f} model {m}"),
         _ => "unknown".to_string(),
     };
-    let l3 = std::fs::read_to_string("/sys/devices/system/cpu/cpu0/cache/index3/size")
-        .map(|s| s.trim().to_string())
-        .unwrap_or_else(|_| "unknown".to_string());
+    // The last-level cache cpu 0 sees (on AMD one CCX's share, not the socket's).
+    let cache = |f: &str| {
+        std::fs::read_to_string(format!("/sys/devices/system/cpu/cpu0/cache/index3/{f}"))
+            .map(|s| s.trim().to_string())
+            .ok()
+    };
+    let l3 = match (cache("level").as_deref(), cache("size")) {
+        (Some("3"), Some(size)) => size,
+        _ => "unknown".to_string(),
+    };
     let host = std::fs::read_to_string("/etc/hostname")
         .map(|s| s.trim().to_string())
         .unwrap_or_else(|_| "unknown".to_string());

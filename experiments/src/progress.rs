@@ -2,13 +2,15 @@
 //! under `nohup`, CI, Slurm, or `figures … 2> log`) `indicatif` would draw nothing, and a
 //! 37-minute atlas would log nothing between its start and its end; so when stderr is not a
 //! terminal the same bar is written as plain lines (`prefix [elapsed] pos/len pct% eta msg`),
-//! at most one every [`PROGRESS_ENV`] seconds (default [`DEFAULT_SECONDS`]) and none in a
-//! bar's first interval, so short runs and the test suite's quick runs print nothing.
+//! at most one every [`PROGRESS_ENV`] seconds (default [`DEFAULT_SECONDS`]) over all the
+//! process's bars and none in its first interval, so short runs and the test suite's quick runs
+//! print nothing. Lines that are results, not progress, go through [`note`] and are never
+//! held back.
 //! `--no-progress` hides both.
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, TermLike};
 use std::io::{IsTerminal, Write};
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 /// Seconds between the plain progress lines written when stderr is not a terminal; `0`
@@ -48,7 +50,10 @@ pub fn bar(len: Option<u64>, hidden: bool, what: &str) -> ProgressBar {
         (ProgressDrawTarget::stderr(), false)
     } else {
         match log_interval() {
-            Some(every) => (LogLines::target(LogLines::new(every, Sink::Stderr)), true),
+            Some(every) => {
+                let t = LogLines::new(every, Sink::Stderr, process_clock());
+                (t.target(), true)
+            }
             None => return ProgressBar::hidden(),
         }
     };
@@ -80,25 +85,46 @@ enum Sink {
     Stderr,
     /// Collected (the tests).
     #[cfg(test)]
-    Memory(std::sync::Arc<Mutex<Vec<String>>>),
+    Memory(Arc<Mutex<Vec<String>>>),
+}
+
+/// A line that belongs to the log, not to the bar (a result as it comes): above the bar on a
+/// terminal, else on stderr as it is (a bar's own lines are throttled, these never are).
+pub fn note(pb: &ProgressBar, line: &str) {
+    if !pb.is_hidden() && std::io::stderr().is_terminal() {
+        pb.println(line);
+    } else {
+        eprintln!("{line}");
+    }
+}
+
+/// When the last plain line was written (or the first bar made): one clock for the process,
+/// so that an experiment with many short bars (one per case) still logs once an interval.
+type Clock = Arc<Mutex<Instant>>;
+
+fn process_clock() -> Clock {
+    static CLOCK: OnceLock<Clock> = OnceLock::new();
+    Arc::clone(CLOCK.get_or_init(|| Arc::new(Mutex::new(Instant::now()))))
 }
 
 /// An `indicatif` terminal that keeps what a draw writes (without its cursor moves, carriage
 /// returns and padding) and writes it as one line at the draw's end (`flush`), if the
-/// interval has passed since the last line (or since it was made).
+/// interval has passed on its clock since the last line (or since the clock started).
 #[derive(Debug)]
 struct LogLines {
     every: Duration,
     sink: Sink,
-    state: Mutex<(String, Instant)>,
+    frame: Mutex<String>,
+    clock: Clock,
 }
 
 impl LogLines {
-    fn new(every: Duration, sink: Sink) -> Self {
+    fn new(every: Duration, sink: Sink, clock: Clock) -> Self {
         Self {
             every,
             sink,
-            state: Mutex::new((String::new(), Instant::now())),
+            frame: Mutex::new(String::new()),
+            clock,
         }
     }
 
@@ -108,8 +134,8 @@ impl LogLines {
     }
 
     fn keep(&self, s: &str) {
-        if let Ok(mut st) = self.state.lock() {
-            st.0.extend(s.chars().filter(|&c| c != '\r'));
+        if let Ok(mut f) = self.frame.lock() {
+            f.extend(s.chars().filter(|&c| c != '\r'));
         }
     }
 
@@ -167,19 +193,21 @@ impl TermLike for LogLines {
     }
 
     fn flush(&self) -> std::io::Result<()> {
-        let line = match self.state.lock() {
-            Ok(mut st) => {
-                let frame = std::mem::take(&mut st.0);
-                let line = frame.trim().to_string();
-                if line.is_empty() || st.1.elapsed() < self.every {
-                    return Ok(());
-                }
-                st.1 = Instant::now();
-                line
-            }
+        let frame = match self.frame.lock() {
+            Ok(mut f) => std::mem::take(&mut *f),
             Err(_) => return Ok(()),
         };
-        self.emit(&line);
+        let line = frame.trim();
+        if line.is_empty() {
+            return Ok(());
+        }
+        if let Ok(mut last) = self.clock.lock() {
+            if last.elapsed() < self.every {
+                return Ok(());
+            }
+            *last = Instant::now();
+        }
+        self.emit(line);
         Ok(())
     }
 }
@@ -187,11 +215,11 @@ impl TermLike for LogLines {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::Arc;
 
     fn collected(every: Duration) -> (LogLines, Arc<Mutex<Vec<String>>>) {
         let v = Arc::new(Mutex::new(Vec::new()));
-        (LogLines::new(every, Sink::Memory(Arc::clone(&v))), v)
+        let clock = Arc::new(Mutex::new(Instant::now()));
+        (LogLines::new(every, Sink::Memory(Arc::clone(&v)), clock), v)
     }
 
     fn lines(v: &Arc<Mutex<Vec<String>>>) -> Vec<String> {
@@ -221,6 +249,28 @@ mod tests {
             t.flush().unwrap();
         }
         assert!(lines(&v).is_empty(), "{:?}", lines(&v));
+    }
+
+    /// Bars share one clock: after one bar's line, another's draw within the interval writes
+    /// nothing (an experiment of many short bars logs once an interval, not once a bar).
+    #[test]
+    fn bars_share_the_interval() {
+        let hour = Duration::from_secs(3600);
+        let Some(start) = Instant::now().checked_sub(2 * hour) else {
+            return; // a clock younger than two hours: nothing to show
+        };
+        let clock = Arc::new(Mutex::new(start));
+        let v = Arc::new(Mutex::new(Vec::new()));
+        let sink = || Sink::Memory(Arc::clone(&v));
+        let (a, b) = (
+            LogLines::new(hour, sink(), Arc::clone(&clock)),
+            LogLines::new(hour, sink(), clock),
+        );
+        for (t, text) in [(&a, "a 1/2"), (&b, "b 1/2"), (&a, "a 2/2")] {
+            t.write_str(text).unwrap();
+            t.flush().unwrap();
+        }
+        assert_eq!(lines(&v), ["a 1/2"]);
     }
 
     /// Through `indicatif`: a finished bar's last draw is a line with its count and

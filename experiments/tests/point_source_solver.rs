@@ -165,10 +165,10 @@ fn multigrid_on_the_gpu_matches_sor_and_the_cpu() {
 
 /// `point_source --solver sor,auto` where SOR is slow (Gauss–Seidel, `--omega 1`, 31³ CDA,
 /// R̄/j̄ < 10⁻⁹; measured 2026-12-06: SOR 906 iterations, `auto` 200 sweeps and 7 cycles, 237.1
-/// work units): `auto` runs its 200 SOR sweeps,
-/// hands the solve to multigrid (`solved_by` = `sor>multigrid`, ω recorded as multigrid's
-/// smoother's 1.2, not the `--omega 1` of its SOR part), counts both in its work units, and reaches SOR's φ to 10⁻⁶; its seconds include the
-/// SOR sweeps.
+/// work units): `auto` runs its 200 SOR sweeps, hands the solve to multigrid (`solved_by` =
+/// `sor>multigrid`, ω recorded as multigrid's smoother's 1.2, not the `--omega 1` of its SOR
+/// part), counts both in its work units, and reaches SOR's φ to 10⁻⁶; its seconds include
+/// the SOR sweeps.
 #[test]
 fn auto_hands_a_slow_sor_solve_to_multigrid_in_the_experiment() {
     let dir = tmp("ps_solver_auto");
