@@ -713,7 +713,7 @@ impl Ctx {
     /// A progress bar over `len` steps (hidden with `--no-progress`; plain lines when stderr is
     /// no terminal, [`crate::progress`]).
     pub fn progress(&self, len: u64, what: &str) -> ProgressBar {
-        bar(len, self.no_progress, what)
+        crate::progress::bar(Some(len), self.no_progress, what)
     }
 
     /// A spinner with elapsed time for one long step without a step count (hidden like
@@ -915,11 +915,7 @@ pub fn machine() -> serde_json::Value {
 /// A progress bar over `len` steps (hidden with `--no-progress`; plain lines when stderr is no
 /// terminal, [`crate::progress`]).
 pub fn progress(len: u64, args: &CommonArgs, what: &str) -> ProgressBar {
-    bar(len, args.no_progress, what)
-}
-
-fn bar(len: u64, hidden: bool, what: &str) -> ProgressBar {
-    crate::progress::bar(Some(len), hidden, what)
+    crate::progress::bar(Some(len), args.no_progress, what)
 }
 
 /// Parses one item of a comma-separated list flag (`value_parser = list_item::<f64>`, with

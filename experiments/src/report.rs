@@ -410,7 +410,8 @@ pub fn readme(root: &Path, outcomes: &[RunOutcome], quick: bool) -> Result<Strin
     // Where each run was made: `figures --only` reruns some folders and keeps the others, so
     // the folders may come from several revisions and hosts; the header must not claim one.
     // (`cpu_id` is in the `meta.json` of runs since 2026-12-08.)
-    let origin = |m: Option<&serde_json::Value>| {
+    let origin = |m: &serde_json::Value| {
+        let m = Some(m);
         let id = field(m, &["machine", "cpu_id"]);
         format!(
             "`{}` on {}{} ({} cores)",
@@ -424,7 +425,7 @@ pub fn readme(root: &Path, outcomes: &[RunOutcome], quick: bool) -> Result<Strin
             field(m, &["machine", "logical_cores"]),
         )
     };
-    let mut origins: Vec<String> = metas.iter().flatten().map(|m| origin(Some(m))).collect();
+    let mut origins: Vec<String> = metas.iter().flatten().map(origin).collect();
     origins.sort();
     origins.dedup();
     let mixed = origins.len() > 1;
@@ -468,10 +469,7 @@ pub fn readme(root: &Path, outcomes: &[RunOutcome], quick: bool) -> Result<Strin
             },
         ];
         if mixed {
-            row.push(
-                m.as_ref()
-                    .map_or_else(|| "no meta.json".into(), |m| origin(Some(m))),
-            );
+            row.push(m.as_ref().map_or_else(|| "no meta.json".into(), origin));
         }
         row
     });
